@@ -1,0 +1,1 @@
+"""The ``sicomat`` command-line program: a thin shell over the public API."""

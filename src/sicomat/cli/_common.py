@@ -1,0 +1,55 @@
+"""Shared plumbing of the CLI commands: options, model loading, error reporting, JSON output."""
+
+from __future__ import annotations
+
+import json
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator, List, Optional
+
+import typer
+
+__all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "emit_json", "load"]
+
+SetOption = typer.Option(
+    None, "--set", metavar="KEY=VALUE",
+    help="Override a model parameter by key path for this run, units allowed "
+         "(e.g. --set axes.X.mechanics.bodies.load.mass='300 kg'). Repeatable.")
+JsonOption = typer.Option(False, "--json", help="Print one JSON object on stdout instead of tables.")
+AxisOption = typer.Option(None, "--axis", help="Axis name (default: the first axis of the model).")
+PlotOption = typer.Option(None, "--plot", help="Write a figure to this file (.png, .svg or .pdf).",
+                          dir_okay=False)
+
+
+@contextmanager
+def guarded() -> Iterator[None]:
+    """Turn SICOMAT errors (and output-file errors) into one line on stderr and exit status 2."""
+    from ..errors import SicomatError
+
+    try:
+        yield
+    except SicomatError as exc:
+        _fail(str(exc))
+    except OSError as exc:  # e.g. writing a plot into a folder that does not exist
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        _fail(f"{where}{exc.strerror or exc}")
+
+
+def _fail(message: str) -> None:
+    from rich.console import Console
+
+    Console(stderr=True, highlight=False, soft_wrap=True).print(f"error: {message}", markup=False)
+    raise typer.Exit(code=2)
+
+
+def load(model: Path, overrides: Optional[List[str]]):
+    """Load a model file with its ``--set`` overrides."""
+    from ..modelfile import load_model
+
+    return load_model(model, overrides or [])
+
+
+def emit_json(payload: dict[str, Any]) -> None:
+    """Write one JSON object to stdout (finite numbers only)."""
+    sys.stdout.write(json.dumps(payload, indent=2, allow_nan=False) + "\n")

@@ -1,0 +1,55 @@
+"""The package's exceptions: one base class, each subclass also a builtin."""
+
+from __future__ import annotations
+
+__all__ = ["SicomatError", "ModelError", "AnalysisError"]
+
+
+class SicomatError(Exception):
+    """Base class of every error SICOMAT raises on purpose."""
+
+
+class ModelError(SicomatError, ValueError):
+    """A model description (file, override or Python value) is invalid.
+
+    Parameters
+    ----------
+    message : str
+        What was found and what was expected.
+    source : str, optional
+        Where the model came from: a file path, or ``"--set"`` for a command-line override.
+    path : str, optional
+        Dotted key path inside the model, e.g. ``"axes.X.mechanics.bodies.load.mass"``.
+    value : object, optional
+        The offending value as written.
+    """
+
+    def __init__(self, message: str, *, source: str | None = None, path: str | None = None,
+                 value: object = None, has_value: bool = False) -> None:
+        self.message = message
+        self.source = source
+        self.path = path
+        self.value = value
+        self.has_value = has_value or value is not None
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        parts = []
+        if self.source:
+            parts.append(str(self.source))
+        if self.path:
+            parts.append(self.path)
+        where = ": ".join(parts)
+        what = self.message
+        if self.has_value:
+            what = f"{what} (got {self.value!r})"
+        return f"{where}: {what}" if where else what
+
+    def with_source(self, source: str) -> "ModelError":
+        """The same error, located in ``source``."""
+        return ModelError(self.message, source=source, path=self.path, value=self.value,
+                          has_value=self.has_value)
+
+
+class AnalysisError(SicomatError, RuntimeError):
+    """An analysis cannot be carried out on a valid model (e.g. no actuator to excite it)."""

@@ -1,0 +1,415 @@
+"""The machine description: one tree of validated, immutable pydantic models (the model-file schema).
+
+Quantities are parsed to SI floats when the model is built (see :mod:`sicomat.units`); everything
+downstream reads plain SI numbers. Changing a model means making a new one
+(``machine.model_copy(update=...)`` or :func:`sicomat.modelfile.with_overrides`).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, model_validator)
+from pydantic_core import PydanticCustomError
+
+from .units import UNITS, parse_quantity
+
+__all__ = [
+    "GROUND", "Body", "Coupling", "Friction", "Actuator", "Sensor",
+    "LumpedSpec", "ChainSpec", "BeltRackSpec", "MechanicsSpec", "Axis", "Machine",
+]
+
+GROUND = "ground"
+"""Reserved name of the fixed frame (the machine bed) in couplings, frictions and actuators."""
+
+_NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_\-]*$"
+Name = Annotated[str, Field(pattern=_NAME_PATTERN)]
+
+
+def _quantity(kind: str):
+    unit = UNITS[kind]
+    return BeforeValidator(lambda v: parse_quantity(v, unit))
+
+
+Mass = Annotated[float, _quantity("mass"), Field(gt=0)]
+Inertia = Annotated[float, _quantity("inertia"), Field(gt=0)]
+NonNegativeMass = Annotated[float, _quantity("mass"), Field(ge=0)]
+NonNegativeInertia = Annotated[float, _quantity("inertia"), Field(ge=0)]
+Length = Annotated[float, _quantity("length"), Field(gt=0)]
+LinearStiffness = Annotated[float, _quantity("linear_stiffness"), Field(ge=0)]
+LinearDamping = Annotated[float, _quantity("linear_damping"), Field(ge=0)]
+TorsionalDamping = Annotated[float, _quantity("torsional_damping"), Field(ge=0)]
+Ratio = Annotated[float, BeforeValidator(lambda v: parse_quantity(v, UNITS["dimensionless"]))]
+
+Kind = Literal["translational", "rotational"]
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# --------------------------------------------------------------------------- lumped elements
+class Body(_Spec):
+    """A rigid body with one degree of freedom: give ``mass`` (translation) or ``inertia`` (rotation)."""
+
+    mass: Mass | None = None
+    inertia: Inertia | None = None
+
+    @model_validator(mode="after")
+    def _one_of(self) -> "Body":
+        if (self.mass is None) == (self.inertia is None):
+            raise PydanticCustomError(
+                "sicomat", "a body needs exactly one of 'mass' (translational) or 'inertia' (rotational)")
+        return self
+
+    @property
+    def kind(self) -> Kind:
+        """``"translational"`` for a mass, ``"rotational"`` for an inertia."""
+        return "translational" if self.mass is not None else "rotational"
+
+    @property
+    def value(self) -> float:
+        """The mass (kg) or inertia (kg·m²)."""
+        return self.mass if self.mass is not None else self.inertia  # type: ignore[return-value]
+
+
+class _Link(_Spec):
+    """Common part of couplings and frictions: two ends and their transmission ratios.
+
+    The link's stretch is ``ratios[0]*q[between[0]] - ratios[1]*q[between[1]]``; the ground's
+    position is zero. ``stretch`` says whether that is a translation (m) or a rotation (rad); by
+    default it is a translation when either end is a translational body, a rotation otherwise.
+    """
+
+    between: tuple[Name, Name]
+    ratios: tuple[float, float] = (1.0, 1.0)
+    stretch: Kind | None = None
+
+
+class Coupling(_Link):
+    """A spring with internal material damping between two bodies or a body and the ground."""
+
+    stiffness: float = Field(default=0.0, ge=0)
+    damping: float = Field(default=0.0, ge=0)
+
+
+class Friction(_Link):
+    """Viscous and Coulomb friction on the relative motion of two bodies (or a body and the ground).
+
+    ``static`` is the breakaway force (default: equal to ``coulomb``); only the simulator uses the
+    Coulomb and static parts, the linear model carries the viscous part.
+    """
+
+    viscous: float = Field(default=0.0, ge=0)
+    coulomb: float = Field(default=0.0, ge=0)
+    static: float | None = Field(default=None, ge=0)
+
+    @model_validator(mode="after")
+    def _static_above_coulomb(self) -> "Friction":
+        if self.static is not None and self.static < self.coulomb:
+            raise _fail("the static (breakaway) friction must be at least the Coulomb friction {coulomb}",
+                        "static", self.static, coulomb=self.coulomb)
+        return self
+
+
+class Actuator(_Spec):
+    """A force (on a mass) or torque (on an inertia), with its reaction on another body if given."""
+
+    body: Name
+    reaction: Name | None = None
+
+
+class Sensor(_Spec):
+    """A position or velocity measurement of a body, absolute or relative to another body."""
+
+    body: Name
+    relative_to: Name | None = None
+    kind: Literal["position", "velocity"] = "position"
+
+
+# --------------------------------------------------------------------------- mechanics descriptions
+_STIFFNESS = {"translational": "linear_stiffness", "rotational": "torsional_stiffness"}
+_DAMPING = {"translational": "linear_damping", "rotational": "torsional_damping"}
+_LOAD = {"translational": "force", "rotational": "torque"}
+
+
+def _fail(message: str, subpath: str, value: Any = None, **ctx: Any) -> PydanticCustomError:
+    """A validation error located at ``subpath`` below the validating model (see :mod:`.modelfile`)."""
+    try:
+        text = message.format(value=repr(value) if isinstance(value, str) else value, **ctx)
+    except (KeyError, IndexError, ValueError):
+        text = message
+    return PydanticCustomError("sicomat", text.replace("{", "(").replace("}", ")"),
+                               {"subpath": subpath, "value": value})
+
+
+def _ratio_unit(body_kind: str, stretch: str) -> str:
+    if body_kind == stretch:
+        return "dimensionless"
+    return "radius" if body_kind == "rotational" else "inverse_radius"
+
+
+class LumpedSpec(_Spec):
+    """The general lumped model: named bodies, couplings, frictions, actuators and sensors.
+
+    Examples
+    --------
+    >>> spec = LumpedSpec(bodies={"m": {"mass": "2 kg"}},
+    ...                   couplings={"k": {"between": ["m", "ground"], "stiffness": "8 N/m"}})
+    >>> spec.bodies["m"].mass
+    2.0
+    """
+
+    type: Literal["lumped"] = "lumped"
+    bodies: dict[Name, Body] = Field(min_length=1)
+    couplings: dict[Name, Coupling] = Field(default_factory=dict)
+    frictions: dict[Name, Friction] = Field(default_factory=dict)
+    actuators: dict[Name, Actuator] = Field(default_factory=dict)
+    sensors: dict[Name, Sensor] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _parse_link_quantities(cls, data: Any) -> Any:
+        """Parse the units of links, whose dimensions depend on the kinds of the bodies they join."""
+        if not isinstance(data, dict):
+            return data
+        bodies = data.get("bodies")
+        if not isinstance(bodies, dict):
+            return data
+        kinds = {name: ("rotational" if isinstance(b, (dict, Body)) and _has_inertia(b) else "translational")
+                 for name, b in bodies.items()}
+        data = dict(data)
+        for table, fields in (("couplings", {"stiffness": _STIFFNESS, "damping": _DAMPING}),
+                              ("frictions", {"viscous": _DAMPING, "coulomb": _LOAD, "static": _LOAD})):
+            links = data.get(table)
+            if not isinstance(links, dict):
+                continue
+            data[table] = {name: _parse_link(link, kinds, fields, f"{table}.{name}")
+                           for name, link in links.items()}
+        return data
+
+    @model_validator(mode="after")
+    def _check_topology(self) -> "LumpedSpec":
+        names = set(self.bodies)
+        if GROUND in names:
+            raise _fail("'ground' is reserved for the fixed frame and cannot name a body", f"bodies.{GROUND}")
+        for table in ("couplings", "frictions"):
+            for name, link in getattr(self, table).items():
+                for end in link.between:
+                    if end != GROUND and end not in names:
+                        raise _fail("unknown body {value}; expected one of {known}",
+                                    f"{table}.{name}.between", end, known=_known(names))
+                if link.between[0] == link.between[1]:
+                    raise _fail("a link needs two different ends", f"{table}.{name}.between",
+                                list(link.between))
+                if all(r == 0 for r, end in zip(link.ratios, link.between) if end != GROUND):
+                    raise _fail("at least one ratio of a body end must be non-zero",
+                                f"{table}.{name}.ratios", list(link.ratios))
+        for name, act in self.actuators.items():
+            for key, end in (("body", act.body), ("reaction", act.reaction)):
+                if end is not None and end not in names:
+                    raise _fail("unknown body {value}; expected one of {known}",
+                                f"actuators.{name}.{key}", end, known=_known(names))
+            if act.reaction is not None:
+                if act.reaction == act.body:
+                    raise _fail("the reaction must act on another body", f"actuators.{name}.reaction",
+                                act.reaction)
+                if self.bodies[act.reaction].kind != self.bodies[act.body].kind:
+                    raise _fail("the reaction body must be of the same kind ({kind}) as the driven body",
+                                f"actuators.{name}.reaction", act.reaction,
+                                kind=self.bodies[act.body].kind)
+        for name, sensor in self.sensors.items():
+            for key, end in (("body", sensor.body), ("relative_to", sensor.relative_to)):
+                if end is not None and end not in names:
+                    raise _fail("unknown body {value}; expected one of {known}",
+                                f"sensors.{name}.{key}", end, known=_known(names))
+            if sensor.relative_to is not None and \
+                    self.bodies[sensor.relative_to].kind != self.bodies[sensor.body].kind:
+                raise _fail("a relative sensor needs two bodies of the same kind",
+                            f"sensors.{name}.relative_to", sensor.relative_to)
+        self._check_connected()
+        return self
+
+    def _check_connected(self) -> None:
+        edges: list[tuple[str, str]] = []
+        for link in (*self.couplings.values(), *self.frictions.values()):
+            edges.append(link.between)
+        for act in self.actuators.values():
+            edges.append((act.body, act.reaction or GROUND))
+        parent = {n: n for n in (*self.bodies, GROUND)}
+
+        def root(n: str) -> str:
+            while parent[n] != n:
+                parent[n] = parent[parent[n]]
+                n = parent[n]
+            return n
+
+        touched = set()
+        for a, b in edges:
+            touched.update((a, b))
+            parent[root(a)] = root(b)
+        for name in self.bodies:
+            if name not in touched:
+                raise _fail("body {value} is linked to nothing (no coupling, friction or actuator); "
+                            "expected it to be connected to the rest of the axis", f"bodies.{name}", name)
+        groups = {root(n) for n in self.bodies}
+        if len(groups) > 1:
+            ground_root = root(GROUND)
+            cut = sorted(n for n in self.bodies if root(n) != ground_root) or sorted(self.bodies)
+            raise _fail("bodies {value} are not connected to the rest of the axis (or to the ground); "
+                        "expected one connected mechanism", f"bodies.{cut[0]}", cut)
+
+    def to_lumped(self) -> "LumpedSpec":
+        """This description as the general lumped form (itself)."""
+        return self
+
+    def stretch_kind(self, link: _Link) -> Kind:
+        """Whether ``link`` stretches in translation or rotation (see :class:`Coupling`)."""
+        return _stretch_kind(link.stretch, link.between, {n: b.kind for n, b in self.bodies.items()})
+
+
+def _has_inertia(body: Any) -> bool:
+    if isinstance(body, Body):
+        return body.inertia is not None
+    return "inertia" in body and body.get("mass") is None
+
+
+def _known(names: set[str]) -> str:
+    return ", ".join(sorted(names) + [GROUND])
+
+
+def _stretch_kind(explicit: Any, between: Any, kinds: dict[str, str]) -> Kind:
+    if explicit in ("translational", "rotational"):
+        return explicit
+    ends = [kinds.get(e) for e in between if e != GROUND and e in kinds]
+    return "translational" if "translational" in ends or not ends else "rotational"
+
+
+def _parse_link(link: Any, kinds: dict[str, str], fields: dict[str, dict[str, str]], where: str) -> Any:
+    if not isinstance(link, dict):
+        return link
+    between = link.get("between")
+    if not (isinstance(between, (list, tuple)) and len(between) == 2 and all(isinstance(e, str) for e in between)):
+        return link  # the field validator reports the shape error
+    stretch = _stretch_kind(link.get("stretch"), between, kinds)
+    out = dict(link)
+    for key, units in fields.items():
+        if key in out and out[key] is not None:
+            try:
+                out[key] = parse_quantity(out[key], UNITS[units[stretch]])
+            except ValueError as exc:
+                raise _fail(str(exc), f"{where}.{key}", out[key]) from None
+    ratios = out.get("ratios")
+    if isinstance(ratios, (list, tuple)) and len(ratios) == 2:
+        parsed = []
+        for i, (end, ratio) in enumerate(zip(between, ratios)):
+            unit = "dimensionless" if end == GROUND or end not in kinds else _ratio_unit(kinds[end], stretch)
+            try:
+                parsed.append(parse_quantity(ratio, UNITS[unit]))
+            except ValueError as exc:
+                raise _fail(str(exc), f"{where}.ratios.{i}", ratio) from None
+        out["ratios"] = parsed
+    return out
+
+
+class ChainSpec(_Spec):
+    """An n-mass / (n−1)-spring chain (nMmS) of translational bodies, driven on its first body.
+
+    Bodies are named ``names`` (default ``m1 … mn``), spring i joins bodies i and i+1. The
+    actuator ``motor`` pushes the first body (against the ground); sensors ``first`` and
+    ``last`` read the positions of the end bodies. ``ground_stiffness`` optionally ties the
+    first body to the ground; ``viscous`` adds viscous friction of each body to the ground.
+    """
+
+    type: Literal["chain"]
+    masses: list[Mass] = Field(min_length=1)
+    stiffnesses: list[LinearStiffness] = Field(default_factory=list)
+    dampings: list[LinearDamping] | None = None
+    viscous: list[LinearDamping] | None = None
+    ground_stiffness: LinearStiffness = 0.0
+    names: list[Name] | None = None
+
+    @model_validator(mode="after")
+    def _lengths(self) -> "ChainSpec":
+        n = len(self.masses)
+        for key, expected in (("stiffnesses", n - 1), ("dampings", n - 1), ("viscous", n), ("names", n)):
+            value = getattr(self, key)
+            if value is not None and len(value) != expected and not (key == "stiffnesses" and n == 1 and not value):
+                raise _fail("expected {expected} entries for {n} masses", key, value, expected=expected, n=n)
+        if self.names is not None and len(set(self.names)) != n:
+            raise _fail("body names must be unique", "names", self.names)
+        return self
+
+    def to_lumped(self) -> LumpedSpec:
+        """The chain as a :class:`LumpedSpec`."""
+        from .builders import chain_to_lumped
+
+        return chain_to_lumped(self)
+
+
+class BeltRackSpec(_Spec):
+    """The paper's Fig. 3 axis (2M1S): motor, belt with two wheels, gearwheel and rack, load.
+
+    Parameters are the component values of Section II.C; :func:`sicomat.builders.belt_rack_to_lumped`
+    computes the equivalents of eqs. (5)–(9). See ``docs/mechanics.md`` for the derivation.
+    """
+
+    type: Literal["belt-rack"]
+    J_m: Inertia
+    J_am: NonNegativeInertia = 0.0
+    J_pm: NonNegativeInertia = 0.0
+    R_pm: Length
+    m_c: NonNegativeMass = 0.0
+    J_pc: NonNegativeInertia = 0.0
+    R_pc: Length
+    J_pig: NonNegativeInertia = 0.0
+    J_apig: NonNegativeInertia = 0.0
+    R_pig: Length
+    m_cre: NonNegativeMass = 0.0
+    M_load: Mass
+    k11eq: LinearStiffness
+    f11eq: LinearDamping = 0.0
+    mu11eq: TorsionalDamping = 0.0
+    mu12eq: LinearDamping = 0.0
+    coulomb_motor: Annotated[float, _quantity("torque"), Field(ge=0)] = 0.0
+    coulomb_load: Annotated[float, _quantity("force"), Field(ge=0)] = 0.0
+
+    def to_lumped(self) -> LumpedSpec:
+        """The axis as a :class:`LumpedSpec` with bodies ``motor`` and ``load``."""
+        from .builders import belt_rack_to_lumped
+
+        return belt_rack_to_lumped(self)
+
+
+MechanicsSpec = Annotated[Union[LumpedSpec, ChainSpec, BeltRackSpec], Field(discriminator="type")]
+
+
+# --------------------------------------------------------------------------- machine
+class Axis(_Spec):
+    """One feed axis. Later stages add ``drive``, ``controller`` and ``trajectory`` beside ``mechanics``."""
+
+    mechanics: MechanicsSpec
+
+
+class Machine(_Spec):
+    """A machine: a name and one or more named axes (the first is the default axis)."""
+
+    name: str = ""
+    description: str = ""
+    axes: dict[Name, Axis] = Field(min_length=1)
+
+    def axis(self, name: str | None = None) -> Axis:
+        """The axis called ``name``, or the first axis."""
+        if name is None:
+            return next(iter(self.axes.values()))
+        if name not in self.axes:
+            from .errors import ModelError
+
+            raise ModelError(f"unknown axis; expected one of {', '.join(self.axes)}", path="axes",
+                             value=name)
+        return self.axes[name]
+
+    def axis_name(self, name: str | None = None) -> str:
+        """The name of the axis ``name`` resolves to (the first axis when ``None``)."""
+        self.axis(name)
+        return name if name is not None else next(iter(self.axes))

@@ -1,0 +1,189 @@
+"""Model files: read TOML into a :class:`~sicomat.model.Machine`, apply ``--set`` overrides, save atomically."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import tomllib
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+from pydantic import ValidationError
+
+from .errors import ModelError
+from .model import Machine
+
+__all__ = ["load_model", "machine_from_dict", "save_model", "dump_model", "parse_override",
+           "with_overrides"]
+
+_UNION_TAGS = {"lumped", "chain", "belt-rack"}
+
+
+def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machine:
+    """Read and validate a model file, then apply ``KEY=VALUE`` overrides.
+
+    Parameters
+    ----------
+    path : path-like
+        A TOML model file (schema in ``docs/model-file.md``).
+    overrides : iterable of str
+        ``"axes.X.mechanics.bodies.load.mass=300 kg"``-style settings; values are read as TOML
+        values when they parse as such (numbers, arrays, booleans), as strings otherwise.
+
+    Raises
+    ------
+    ModelError
+        The file cannot be read, is not TOML, or does not describe a valid machine; the message
+        names the file (or the override), the key path, the value and what was expected.
+    """
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ModelError("no such model file", source=source) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"cannot read the model file ({exc.__class__.__name__}: {exc})", source=source) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ModelError(f"not a valid TOML file: {exc}", source=source) from None
+    machine = machine_from_dict(data, source=source)
+    overrides = list(overrides)
+    if not overrides:
+        return machine
+    for item in overrides:
+        key, value = parse_override(item)
+        data = _set_path(data, key, value, source=f"--set {item}")
+        machine = machine_from_dict(data, source=f"--set {item}")
+    return machine
+
+
+def machine_from_dict(data: Mapping[str, Any], source: str | None = None) -> Machine:
+    """Validate a plain mapping (as read from TOML) into a :class:`Machine`."""
+    try:
+        return Machine.model_validate(data)
+    except ValidationError as exc:
+        raise _translate(exc, source) from None
+
+
+def with_overrides(machine: Machine, settings: Mapping[str, Any]) -> Machine:
+    """A new machine with values set by key path, validated like a file.
+
+    Examples
+    --------
+    >>> m = machine_from_dict({"axes": {"X": {"mechanics": {"type": "chain", "masses": [1, 2],
+    ...                                                      "stiffnesses": [10]}}}})
+    >>> with_overrides(m, {"axes.X.mechanics.masses.1": "3 kg"}).axes["X"].mechanics.masses
+    [1.0, 3.0]
+    """
+    data = dump_data(machine)
+    for key, value in settings.items():
+        data = _set_path(data, key, value, source=f"--set {key}")
+    return machine_from_dict(data, source="override")
+
+
+def parse_override(item: str) -> tuple[str, Any]:
+    """Split ``"KEY=VALUE"`` and read VALUE as a TOML value when it is one, else as a string."""
+    key, sep, raw = item.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise ModelError("expected KEY=VALUE, e.g. axes.X.mechanics.bodies.load.mass='300 kg'",
+                         source="--set", value=item)
+    raw = raw.strip()
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key, value
+
+
+def _set_path(data: Mapping[str, Any], key: str, value: Any, source: str) -> dict[str, Any]:
+    import copy
+
+    root = copy.deepcopy(dict(data))
+    parts = key.split(".")
+    node: Any = root
+    for depth, part in enumerate(parts[:-1]):
+        where = ".".join(parts[: depth + 1])
+        if isinstance(node, dict):
+            node = node.setdefault(part, {})
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            raise ModelError("this key path goes through a value that is not a table", source=source,
+                             path=where)
+    last = parts[-1]
+    if isinstance(node, dict):
+        node[last] = value
+    elif isinstance(node, list) and last.isdigit() and int(last) < len(node):
+        node[int(last)] = value
+    else:
+        raise ModelError("cannot set this key: its parent is not a table (or the index is out of range)",
+                         source=source, path=key)
+    return root
+
+
+def dump_data(machine: Machine) -> dict[str, Any]:
+    """The machine as plain data (SI numbers), ready for TOML."""
+    return machine.model_dump(mode="json", exclude_none=True)
+
+
+def dump_model(machine: Machine) -> str:
+    """The machine as TOML text (SI numbers)."""
+    import tomli_w
+
+    return tomli_w.dumps(dump_data(machine))
+
+
+def save_model(machine: Machine, path: str | os.PathLike) -> Path:
+    """Write the machine to ``path`` atomically (temporary file in the same folder, then rename)."""
+    path = Path(path)
+    text = dump_model(machine)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+# --------------------------------------------------------------------------- errors
+def _translate(exc: ValidationError, source: str | None) -> ModelError:
+    errors = exc.errors()
+    first = errors[0]
+    loc = [str(p) for p in first["loc"]]
+    loc = [p for i, p in enumerate(loc) if not (p in _UNION_TAGS and i > 0 and loc[i - 1] == "mechanics")]
+    ctx = first.get("ctx") or {}
+    kind = first["type"]
+    value, has_value = first.get("input"), True
+    if kind == "sicomat":
+        if ctx.get("subpath"):
+            loc.append(ctx["subpath"])
+        value = ctx.get("value")
+        has_value = value is not None
+        message = first["msg"]
+    elif kind == "missing":
+        message, has_value = "missing required key", False
+    elif kind == "extra_forbidden":
+        message = "unknown key (not part of the model-file schema; check its spelling)"
+    elif kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        message = "expected a value " + first["msg"].removeprefix("Input should be ")
+    elif kind == "union_tag_invalid":
+        message = f"unknown type; expected one of {ctx.get('expected_tags')}"
+        value = ctx.get("tag", value)
+    elif kind == "union_tag_not_found":
+        message, has_value = f"missing key 'type'; expected one of {', '.join(sorted(_UNION_TAGS))}", False
+    elif kind == "string_pattern_mismatch":
+        message = "expected a name made of letters, digits, '_' or '-', starting with a letter"
+    else:
+        message = first["msg"].removeprefix("Value error, ").replace("Input should be", "expected")
+    if has_value and isinstance(value, (dict, list)) and len(repr(value)) > 120:
+        has_value = False
+    if len(errors) > 1:
+        message += f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})"
+    path = ".".join(loc)
+    return ModelError(message, source=source, path=path or None, value=value if has_value else None,
+                      has_value=has_value)

@@ -1,0 +1,64 @@
+"""Figures drawn from result objects (matplotlib, headless). Computing never happens here."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+    from .modal import ModalResult
+
+__all__ = ["plot_modes", "save_figure"]
+
+
+def _figure(**kwargs) -> "Figure":
+    from matplotlib.figure import Figure
+
+    return Figure(**kwargs)
+
+
+def plot_modes(result: "ModalResult", max_modes: int = 8) -> "Figure":
+    """Mode shapes as bars per dof, one panel per mode, with frequency and damping in the title."""
+    import numpy as np
+
+    modes = result.modes[:max_modes]
+    count = max(len(modes), 1)
+    cols = min(count, 4)
+    rows = (count + cols - 1) // cols
+    fig = _figure(figsize=(3.2 * cols, 2.6 * rows + 0.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharey=True)).ravel()
+    positions = np.arange(len(result.dofs))
+    for k, (ax, mode) in enumerate(zip(axes, modes)):
+        values = [mode.shape[d] for d in result.dofs]
+        colors = ["tab:blue" if v >= 0 else "tab:orange" for v in values]
+        ax.bar(positions, values, color=colors)
+        ax.axhline(0.0, color="black", linewidth=0.6)
+        title = "rigid body" if mode.rigid else f"{mode.frequency_hz:.4g} Hz, ζ={mode.damping_ratio:.3g}"
+        ax.set_title(f"mode {k + 1}: {title}", fontsize=9)
+        ax.set_xticks(positions, result.dofs, rotation=45, ha="right", fontsize=8)
+        ax.set_ylim(-1.1, 1.1)
+    for ax in axes[len(modes):]:
+        ax.set_visible(False)
+    f_meca = result.f_meca_hz
+    suffix = f" — suggested f_meca = {f_meca:.4g} Hz" if f_meca else ""
+    fig.suptitle(f"Mode shapes{suffix}", fontsize=10)
+    return fig
+
+
+def save_figure(fig: "Figure", path: str | os.PathLike) -> Path:
+    """Save ``fig`` to ``path`` atomically (format from the suffix: .png, .svg, .pdf)."""
+    path = Path(path)
+    suffix = path.suffix.lower().lstrip(".") or "png"
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".{suffix}", dir=path.parent or ".")
+    os.close(fd)
+    try:
+        fig.savefig(tmp, format=suffix, dpi=120)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

@@ -1,0 +1,117 @@
+"""Quantities with units at the model-file boundary: parse with pint, return SI floats."""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from typing import Any
+
+__all__ = ["parse_quantity", "Unit", "UNITS"]
+
+
+class Unit:
+    """An expected physical dimension: its SI unit (pint syntax) and a name for messages."""
+
+    __slots__ = ("si", "name")
+
+    def __init__(self, si: str, name: str) -> None:
+        self.si = si
+        self.name = name
+
+    def __repr__(self) -> str:
+        return f"Unit({self.si!r}, {self.name!r})"
+
+
+# The dimensions used in model files, by key. Radians are dimensionless (as in pint).
+UNITS: dict[str, Unit] = {
+    "mass": Unit("kg", "a mass (kg)"),
+    "inertia": Unit("kg*m**2", "a moment of inertia (kg*m^2)"),
+    "length": Unit("m", "a length (m)"),
+    "angle": Unit("rad", "an angle (rad)"),
+    "time": Unit("s", "a time (s)"),
+    "frequency": Unit("Hz", "a frequency (Hz)"),
+    "force": Unit("N", "a force (N)"),
+    "torque": Unit("N*m", "a torque (N*m)"),
+    "linear_stiffness": Unit("N/m", "a linear stiffness (N/m)"),
+    "torsional_stiffness": Unit("N*m/rad", "a torsional stiffness (N*m/rad)"),
+    "linear_damping": Unit("N*s/m", "a linear damping coefficient (N*s/m)"),
+    "torsional_damping": Unit("N*m*s/rad", "a torsional damping coefficient (N*m*s/rad)"),
+    "dimensionless": Unit("", "a plain number"),
+    "radius": Unit("m/rad", "a radius or lead per radian (m/rad, e.g. '25 mm' or '10 mm/rev')"),
+    "inverse_radius": Unit("rad/m", "a ratio in rad/m"),
+}
+
+
+@lru_cache(maxsize=1)
+def _registry():
+    import pint
+
+    ureg = pint.UnitRegistry()
+    ureg.define("@alias revolution = rev")
+    return ureg
+
+
+def parse_quantity(value: Any, unit: Unit) -> float:
+    """Return ``value`` in SI units of ``unit`` as a float.
+
+    Parameters
+    ----------
+    value : float, int or str
+        A plain number (already SI) or a string with units such as ``"3667 kg"`` or ``"10 mm/rev"``.
+    unit : Unit
+        The expected dimension.
+
+    Raises
+    ------
+    ValueError
+        Unknown unit, wrong dimension, non-finite number or wrong type.
+
+    Examples
+    --------
+    >>> parse_quantity("3000 rpm", Unit("rad/s", "an angular speed"))
+    314.1592653589793
+    >>> parse_quantity(2.5, UNITS["mass"])
+    2.5
+    """
+    if isinstance(value, bool):
+        raise ValueError(f"expected {unit.name}, a number or a string with units")
+    if isinstance(value, (int, float)):
+        result = float(value)
+    elif isinstance(value, str):
+        result = _parse_string(value, unit)
+    else:
+        raise ValueError(f"expected {unit.name}, a number or a string with units")
+    if not math.isfinite(result):
+        raise ValueError(f"expected a finite value for {unit.name}")
+    return result
+
+
+def _parse_string(text: str, unit: Unit) -> float:
+    import pint
+
+    ureg = _registry()
+    try:
+        quantity = ureg.Quantity(text.strip())
+    except pint.errors.UndefinedUnitError as exc:
+        names = ", ".join(repr(n) for n in exc.unit_names) if isinstance(exc.unit_names, (tuple, list)) else repr(exc.unit_names)
+        raise ValueError(f"unknown unit {names}; expected {unit.name}") from None
+    except Exception:
+        raise ValueError(f"cannot read {text!r} as a quantity; expected {unit.name}") from None
+    if not isinstance(quantity, ureg.Quantity):  # a bare number such as "3667"
+        return float(quantity)
+    if quantity.dimensionless and unit.si and not ureg.Quantity(1, unit.si).dimensionless:
+        # A plain number in a string is taken as SI, like a bare TOML number.
+        if quantity.unitless:
+            return float(quantity.magnitude)
+    try:
+        return float(quantity.to(unit.si or "dimensionless").magnitude)
+    except pint.errors.DimensionalityError:
+        found = _dimension_words(quantity)
+        raise ValueError(f"expected {unit.name}, got a quantity of dimension {found}") from None
+
+
+def _dimension_words(quantity) -> str:
+    dims = dict(quantity.dimensionality)
+    if not dims:
+        return "dimensionless"
+    return " * ".join(f"{k.strip('[]')}^{v:g}" if v != 1 else k.strip("[]") for k, v in dims.items())
