@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["SicomatError", "ModelError", "AnalysisError"]
+__all__ = ["SicomatError", "ModelError", "AnalysisError", "OutputError"]
 
 
 class SicomatError(Exception):
@@ -53,3 +53,7 @@ class ModelError(SicomatError, ValueError):
 
 class AnalysisError(SicomatError, RuntimeError):
     """An analysis cannot be carried out on a valid model (e.g. no actuator to excite it)."""
+
+
+class OutputError(SicomatError, OSError):
+    """An output file (figure, CSV, model) cannot be written where it was asked for."""

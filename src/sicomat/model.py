@@ -405,8 +405,7 @@ class Machine(_Spec):
         if name not in self.axes:
             from .errors import ModelError
 
-            raise ModelError(f"unknown axis; expected one of {', '.join(self.axes)}", path="axes",
-                             value=name)
+            raise ModelError(f"unknown axis {name!r}; expected one of {', '.join(self.axes)}", path="axes")
         return self.axes[name]
 
     def axis_name(self, name: str | None = None) -> str:

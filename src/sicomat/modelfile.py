@@ -137,7 +137,11 @@ def dump_model(machine: Machine) -> str:
 
 def save_model(machine: Machine, path: str | os.PathLike) -> Path:
     """Write the machine to ``path`` atomically (temporary file in the same folder, then rename)."""
+    from .errors import OutputError
+
     path = Path(path)
+    if not path.parent.is_dir():
+        raise OutputError(f"{path}: the folder {str(path.parent)!r} does not exist")
     text = dump_model(machine)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
     try:

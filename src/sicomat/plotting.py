@@ -51,8 +51,14 @@ def plot_modes(result: "ModalResult", max_modes: int = 8) -> "Figure":
 
 def save_figure(fig: "Figure", path: str | os.PathLike) -> Path:
     """Save ``fig`` to ``path`` atomically (format from the suffix: .png, .svg, .pdf)."""
+    from .errors import OutputError
+
     path = Path(path)
     suffix = path.suffix.lower().lstrip(".") or "png"
+    if suffix not in ("png", "svg", "pdf"):
+        raise OutputError(f"{path}: unsupported figure format {suffix!r}; expected .png, .svg or .pdf")
+    if not path.parent.is_dir():
+        raise OutputError(f"{path}: the folder {str(path.parent)!r} does not exist")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".{suffix}", dir=path.parent or ".")
     os.close(fd)
     try:

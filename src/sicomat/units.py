@@ -107,7 +107,7 @@ def _parse_string(text: str, unit: Unit) -> float:
         return float(quantity.to(unit.si or "dimensionless").magnitude)
     except pint.errors.DimensionalityError:
         found = _dimension_words(quantity)
-        raise ValueError(f"expected {unit.name}, got a quantity of dimension {found}") from None
+        raise ValueError(f"expected {unit.name}; the value has dimension {found}") from None
 
 
 def _dimension_words(quantity) -> str:

@@ -23,12 +23,17 @@ PlotOption = typer.Option(None, "--plot", help="Write a figure to this file (.pn
 
 
 @contextmanager
-def guarded() -> Iterator[None]:
-    """Turn SICOMAT errors (and output-file errors) into one line on stderr and exit status 2."""
-    from ..errors import SicomatError
+def guarded(source: Path | None = None) -> Iterator[None]:
+    """Turn SICOMAT errors (and output-file errors) into one line on stderr and exit status 2.
+
+    A model error raised without a location (e.g. an unknown ``--axis``) is located in ``source``.
+    """
+    from ..errors import ModelError, SicomatError
 
     try:
         yield
+    except ModelError as exc:
+        _fail(str(exc.with_source(str(source)) if exc.source is None and source is not None else exc))
     except SicomatError as exc:
         _fail(str(exc))
     except OSError as exc:  # e.g. writing a plot into a folder that does not exist

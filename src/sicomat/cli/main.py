@@ -19,7 +19,7 @@ ModelArgument = typer.Argument(..., help="Model file (TOML).", dir_okay=False)
 def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
           json_: bool = JsonOption) -> None:
     """Validate a model file and summarise its axes, dofs and couplings."""
-    with guarded():
+    with guarded(model):
         from ..mechanics import build_mechanics
         from .tables import check_payload, print_check
 
@@ -37,7 +37,7 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
           set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
           plot: Optional[Path] = PlotOption) -> None:
     """Natural frequencies, damping ratios and mode shapes of an axis's mechanics."""
-    with guarded():
+    with guarded(model):
         from ..mechanics import build_mechanics
         from ..modal import modal_analysis
 
