@@ -76,6 +76,7 @@ class Measurement:
     vector: np.ndarray
     kind: Literal["position", "velocity"]
     unit: Literal["translational", "rotational"]
+    step: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,6 +129,36 @@ class Mechanics:
         import scipy.linalg
 
         return scipy.linalg.null_space(np.vstack(active), rcond=1e-10)
+
+    def actuator(self, name: str) -> Load:
+        """The actuator called ``name``."""
+        return next(a for a in self.actuators if a.name == name)
+
+    def sensor(self, name: str) -> Measurement:
+        """The sensor called ``name``."""
+        return next(s for s in self.sensors if s.name == name)
+
+    def rigid_motion(self, actuator: np.ndarray, tool: np.ndarray) -> tuple[np.ndarray, float]:
+        """The rigid-body motion the actuator drives, scaled to a unit tool displacement.
+
+        Returns ``(phi, m_rigid)``: ``phi`` (n,) with ``tool · phi = 1``, and the rigid mass or
+        inertia seen by the actuator, ``m_rigid = u / (tool acceleration)`` (kg for a linear motor on
+        a linear axis, N·m·s²/m for a rotary motor on a linear axis). Without a free rigid motion,
+        the static deflection shape ``K⁻¹ actuator`` stands in for it.
+        """
+        rigid = self.rigid_modes()
+        if rigid.shape[1]:
+            direction = rigid @ np.linalg.solve(rigid.T @ self.mass @ rigid, rigid.T @ actuator)
+        else:
+            direction = np.linalg.solve(self.stiffness, actuator)
+        reach = float(tool @ direction)
+        if abs(reach) < 1e-12 * np.linalg.norm(direction) * max(np.linalg.norm(tool), 1.0):
+            from .errors import ModelError
+
+            raise ModelError("the actuator cannot move the tool body in a rigid-body motion; "
+                             "check the actuator, the couplings' ratios and the tool body")
+        phi = direction / reach
+        return phi, float(phi @ self.mass @ phi) / float(phi @ actuator)
 
     def state_space(self, **kwargs) -> "Plant":
         """The state space of eqs. (11)–(12); see :func:`sicomat.plant.mechanics_plant`."""
@@ -199,7 +230,8 @@ def build_mechanics(spec: "MechanicsSpec") -> Mechanics:
         vector[index[sensor.body]] = 1.0
         if sensor.relative_to is not None:
             vector[index[sensor.relative_to]] -= 1.0
-        sensors.append(Measurement(name, _frozen(vector), sensor.kind, dofs[index[sensor.body]].kind))
+        sensors.append(Measurement(name, _frozen(vector), sensor.kind, dofs[index[sensor.body]].kind,
+                                   step=sensor.step))
 
     return Mechanics(dofs=dofs, mass=mass, damping=damping, stiffness=stiffness,
                      actuators=tuple(actuators), sensors=tuple(sensors),

@@ -6,7 +6,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.linalg
 from scipy.optimize import linear_sum_assignment
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -74,7 +73,7 @@ class ModalResult:
     @property
     def undamped_hz(self) -> np.ndarray:
         """Undamped natural frequencies (Hz), ascending, rigid modes exactly 0."""
-        return np.array([m.undamped_hz for m in self.modes])
+        return np.sort([m.undamped_hz for m in self.modes])
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -154,23 +153,12 @@ def modal_analysis(mech: "Mechanics") -> ModalResult:
     >>> from sicomat.model import ChainSpec
     >>> from sicomat.mechanics import build_mechanics
     >>> res = modal_analysis(build_mechanics(ChainSpec(type="chain", masses=[1, 1], stiffnesses=[2])))
-    >>> [round(f * 2 * 3.141592653589793, 6) for f in res.undamped_hz]
+    >>> [round(float(f) * 2 * 3.141592653589793, 6) for f in res.undamped_hz]
     [0.0, 2.0]
     """
     n = mech.n
     M, K, D = mech.mass, mech.stiffness, mech.damping
-    rigid = mech.rigid_modes()
-    r = rigid.shape[1]
-    shapes = np.zeros((n, n))
-    omega2 = np.zeros(n)
-    shapes[:, :r] = rigid
-    if r < n:
-        Q = scipy.linalg.null_space(rigid.T @ M) if r else np.eye(n)
-        lam, y = scipy.linalg.eigh(Q.T @ K @ Q, Q.T @ M @ Q)
-        omega2[r:] = np.maximum(lam, 0.0)
-        shapes[:, r:] = Q @ y
-    omega = np.sqrt(omega2)
-
+    omega, shapes, r = _undamped(mech)
     poles, vectors = np.linalg.eig(mech.state_space().A)
     freq, zeta, damped = _match_poles(shapes, omega, r, poles, vectors[:n], M, D)
     participation = _participation(mech, shapes, omega, r)
@@ -187,6 +175,31 @@ def modal_analysis(mech: "Mechanics") -> ModalResult:
                           rigid=i < r, participation=float(participation[i])))
     order = sorted(range(n), key=lambda i: (0 if modes[i].rigid else 1, modes[i].frequency_hz))
     return ModalResult(dofs=mech.dof_names, modes=tuple(modes[i] for i in order), poles=poles)
+
+
+def _undamped(mech: "Mechanics") -> tuple[np.ndarray, np.ndarray, int]:
+    """Undamped frequencies (ascending, rigid first and exactly 0), shapes and the rigid count.
+
+    ``K = Gᵀ diag(k) G`` with the couplings' stretch vectors G, so the natural frequencies are the
+    singular values of ``R = diag(√k) G M^{-1/2}`` and the shapes ``M^{-1/2}`` times its right singular
+    vectors. The SVD gets ω to an absolute accuracy ``ε·ω_max`` (the eigenproblem of K gets ω² to
+    ``ε·ω²_max``), so soft modes beside stiffnesses of 1e12 stay accurate.
+    """
+    n = mech.n
+    m_half = 1.0 / np.sqrt(np.diag(mech.mass))
+    springs = [link for link in mech.couplings if link.stiffness > 0]
+    r = mech.rigid_modes().shape[1]
+    if not springs:
+        return np.zeros(n), np.eye(n), n
+    R = np.vstack([np.sqrt(link.stiffness) * link.g for link in springs]) * m_half[None, :]
+    _, sigma, vt = np.linalg.svd(R, full_matrices=True)
+    values = np.zeros(n)
+    values[: sigma.size] = sigma
+    order = np.argsort(values)
+    omega = values[order]
+    omega[:r] = 0.0
+    shapes = m_half[:, None] * vt.T[:, order]
+    return omega, shapes, r
 
 
 def _mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -231,9 +244,9 @@ def _match_poles(shapes, omega, r, poles, pos_vectors, M, D):
             freq[k] = np.sqrt(lam1 * lam2)
             zeta[k] = -(lam1 + lam2) / (2.0 * freq[k])
         else:  # no pole left (degenerate): modal projection of the damping
-            m = float(phi.T @ M @ phi)
+            m = (phi.T @ M @ phi).item()
             freq[k] = omega[k]
-            zeta[k] = float(phi.T @ D @ phi) / (2.0 * omega[k] * m) if omega[k] > 0 else 0.0
+            zeta[k] = (phi.T @ D @ phi).item() / (2.0 * omega[k] * m) if omega[k] > 0 else 0.0
     return freq, zeta, damped
 
 

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, model_validator)
-from pydantic_core import PydanticCustomError
+from pydantic import Field, model_validator
 
+from .spec_base import (Inertia, Length, LinearDamping, LinearStiffness, Mass, Name, NonNegativeInertia,
+                        NonNegativeMass, Spec, TorsionalDamping, fail, quantity)
+from .servo_spec import ControllerSpec, DriveSpec, SetpointSpec
 from .units import UNITS, parse_quantity
 
 __all__ = [
@@ -22,34 +24,11 @@ __all__ = [
 GROUND = "ground"
 """Reserved name of the fixed frame (the machine bed) in couplings, frictions and actuators."""
 
-_NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_\-]*$"
-Name = Annotated[str, Field(pattern=_NAME_PATTERN)]
-
-
-def _quantity(kind: str):
-    unit = UNITS[kind]
-    return BeforeValidator(lambda v: parse_quantity(v, unit))
-
-
-Mass = Annotated[float, _quantity("mass"), Field(gt=0)]
-Inertia = Annotated[float, _quantity("inertia"), Field(gt=0)]
-NonNegativeMass = Annotated[float, _quantity("mass"), Field(ge=0)]
-NonNegativeInertia = Annotated[float, _quantity("inertia"), Field(ge=0)]
-Length = Annotated[float, _quantity("length"), Field(gt=0)]
-LinearStiffness = Annotated[float, _quantity("linear_stiffness"), Field(ge=0)]
-LinearDamping = Annotated[float, _quantity("linear_damping"), Field(ge=0)]
-TorsionalDamping = Annotated[float, _quantity("torsional_damping"), Field(ge=0)]
-Ratio = Annotated[float, BeforeValidator(lambda v: parse_quantity(v, UNITS["dimensionless"]))]
-
 Kind = Literal["translational", "rotational"]
 
 
-class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
 # --------------------------------------------------------------------------- lumped elements
-class Body(_Spec):
+class Body(Spec):
     """A rigid body with one degree of freedom: give ``mass`` (translation) or ``inertia`` (rotation)."""
 
     mass: Mass | None = None
@@ -58,8 +37,7 @@ class Body(_Spec):
     @model_validator(mode="after")
     def _one_of(self) -> "Body":
         if (self.mass is None) == (self.inertia is None):
-            raise PydanticCustomError(
-                "sicomat", "a body needs exactly one of 'mass' (translational) or 'inertia' (rotational)")
+            raise fail("a body needs exactly one of 'mass' (translational) or 'inertia' (rotational)", "")
         return self
 
     @property
@@ -73,7 +51,7 @@ class Body(_Spec):
         return self.mass if self.mass is not None else self.inertia  # type: ignore[return-value]
 
 
-class _Link(_Spec):
+class _Link(Spec):
     """Common part of couplings and frictions: two ends and their transmission ratios.
 
     The link's stretch is ``ratios[0]*q[between[0]] - ratios[1]*q[between[1]]``; the ground's
@@ -107,24 +85,44 @@ class Friction(_Link):
     @model_validator(mode="after")
     def _static_above_coulomb(self) -> "Friction":
         if self.static is not None and self.static < self.coulomb:
-            raise _fail("the static (breakaway) friction must be at least the Coulomb friction {coulomb}",
+            raise fail("the static (breakaway) friction must be at least the Coulomb friction {coulomb}",
                         "static", self.static, coulomb=self.coulomb)
         return self
 
 
-class Actuator(_Spec):
+class Actuator(Spec):
     """A force (on a mass) or torque (on an inertia), with its reaction on another body if given."""
 
     body: Name
     reaction: Name | None = None
 
 
-class Sensor(_Spec):
-    """A position or velocity measurement of a body, absolute or relative to another body."""
+class Sensor(Spec):
+    """A position or velocity measurement of a body, absolute or relative to another body.
+
+    ``resolution`` (m for a mass, rad for an inertia; or ``counts_per_revolution`` for a rotary
+    encoder) is the quantization step of a position sensor, applied where the CNC samples it.
+    """
 
     body: Name
     relative_to: Name | None = None
     kind: Literal["position", "velocity"] = "position"
+    resolution: float | None = Field(default=None, gt=0)
+    counts_per_revolution: int | None = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _one_resolution(self) -> "Sensor":
+        if self.resolution is not None and self.counts_per_revolution is not None:
+            raise fail("give either 'resolution' or 'counts_per_revolution', not both", "counts_per_revolution",
+                       self.counts_per_revolution)
+        return self
+
+    @property
+    def step(self) -> float | None:
+        """Quantization step in SI units (m or rad), or ``None``."""
+        if self.counts_per_revolution is not None:
+            return 2.0 * 3.141592653589793 / self.counts_per_revolution
+        return self.resolution
 
 
 # --------------------------------------------------------------------------- mechanics descriptions
@@ -133,23 +131,13 @@ _DAMPING = {"translational": "linear_damping", "rotational": "torsional_damping"
 _LOAD = {"translational": "force", "rotational": "torque"}
 
 
-def _fail(message: str, subpath: str, value: Any = None, **ctx: Any) -> PydanticCustomError:
-    """A validation error located at ``subpath`` below the validating model (see :mod:`.modelfile`)."""
-    try:
-        text = message.format(value=repr(value) if isinstance(value, str) else value, **ctx)
-    except (KeyError, IndexError, ValueError):
-        text = message
-    return PydanticCustomError("sicomat", text.replace("{", "(").replace("}", ")"),
-                               {"subpath": subpath, "value": value})
-
-
 def _ratio_unit(body_kind: str, stretch: str) -> str:
     if body_kind == stretch:
         return "dimensionless"
     return "radius" if body_kind == "rotational" else "inverse_radius"
 
 
-class LumpedSpec(_Spec):
+class LumpedSpec(Spec):
     """The general lumped model: named bodies, couplings, frictions, actuators and sensors.
 
     Examples
@@ -186,46 +174,49 @@ class LumpedSpec(_Spec):
                 continue
             data[table] = {name: _parse_link(link, kinds, fields, f"{table}.{name}")
                            for name, link in links.items()}
+        sensors = data.get("sensors")
+        if isinstance(sensors, dict):
+            data["sensors"] = {name: _parse_resolution(s, kinds, f"sensors.{name}") for name, s in sensors.items()}
         return data
 
     @model_validator(mode="after")
     def _check_topology(self) -> "LumpedSpec":
         names = set(self.bodies)
         if GROUND in names:
-            raise _fail("'ground' is reserved for the fixed frame and cannot name a body", f"bodies.{GROUND}")
+            raise fail("'ground' is reserved for the fixed frame and cannot name a body", f"bodies.{GROUND}")
         for table in ("couplings", "frictions"):
             for name, link in getattr(self, table).items():
                 for end in link.between:
                     if end != GROUND and end not in names:
-                        raise _fail("unknown body {value}; expected one of {known}",
+                        raise fail("unknown body {value}; expected one of {known}",
                                     f"{table}.{name}.between", end, known=_known(names))
                 if link.between[0] == link.between[1]:
-                    raise _fail("a link needs two different ends", f"{table}.{name}.between",
+                    raise fail("a link needs two different ends", f"{table}.{name}.between",
                                 list(link.between))
                 if all(r == 0 for r, end in zip(link.ratios, link.between) if end != GROUND):
-                    raise _fail("at least one ratio of a body end must be non-zero",
+                    raise fail("at least one ratio of a body end must be non-zero",
                                 f"{table}.{name}.ratios", list(link.ratios))
         for name, act in self.actuators.items():
             for key, end in (("body", act.body), ("reaction", act.reaction)):
                 if end is not None and end not in names:
-                    raise _fail("unknown body {value}; expected one of {known}",
+                    raise fail("unknown body {value}; expected one of {known}",
                                 f"actuators.{name}.{key}", end, known=_known(names))
             if act.reaction is not None:
                 if act.reaction == act.body:
-                    raise _fail("the reaction must act on another body", f"actuators.{name}.reaction",
+                    raise fail("the reaction must act on another body", f"actuators.{name}.reaction",
                                 act.reaction)
                 if self.bodies[act.reaction].kind != self.bodies[act.body].kind:
-                    raise _fail("the reaction body must be of the same kind ({kind}) as the driven body",
+                    raise fail("the reaction body must be of the same kind ({kind}) as the driven body",
                                 f"actuators.{name}.reaction", act.reaction,
                                 kind=self.bodies[act.body].kind)
         for name, sensor in self.sensors.items():
             for key, end in (("body", sensor.body), ("relative_to", sensor.relative_to)):
                 if end is not None and end not in names:
-                    raise _fail("unknown body {value}; expected one of {known}",
+                    raise fail("unknown body {value}; expected one of {known}",
                                 f"sensors.{name}.{key}", end, known=_known(names))
             if sensor.relative_to is not None and \
                     self.bodies[sensor.relative_to].kind != self.bodies[sensor.body].kind:
-                raise _fail("a relative sensor needs two bodies of the same kind",
+                raise fail("a relative sensor needs two bodies of the same kind",
                             f"sensors.{name}.relative_to", sensor.relative_to)
         self._check_connected()
         return self
@@ -250,13 +241,13 @@ class LumpedSpec(_Spec):
             parent[root(a)] = root(b)
         for name in self.bodies:
             if name not in touched:
-                raise _fail("body {value} is linked to nothing (no coupling, friction or actuator); "
+                raise fail("body {value} is linked to nothing (no coupling, friction or actuator); "
                             "expected it to be connected to the rest of the axis", f"bodies.{name}", name)
         groups = {root(n) for n in self.bodies}
         if len(groups) > 1:
             ground_root = root(GROUND)
             cut = sorted(n for n in self.bodies if root(n) != ground_root) or sorted(self.bodies)
-            raise _fail("bodies {value} are not connected to the rest of the axis (or to the ground); "
+            raise fail("bodies {value} are not connected to the rest of the axis (or to the ground); "
                         "expected one connected mechanism", f"bodies.{cut[0]}", cut)
 
     def to_lumped(self) -> "LumpedSpec":
@@ -298,7 +289,7 @@ def _parse_link(link: Any, kinds: dict[str, str], fields: dict[str, dict[str, st
             try:
                 out[key] = parse_quantity(out[key], UNITS[units[stretch]])
             except ValueError as exc:
-                raise _fail(str(exc), f"{where}.{key}", out[key]) from None
+                raise fail(str(exc), f"{where}.{key}", out[key]) from None
     ratios = out.get("ratios")
     if isinstance(ratios, (list, tuple)) and len(ratios) == 2:
         parsed = []
@@ -307,12 +298,22 @@ def _parse_link(link: Any, kinds: dict[str, str], fields: dict[str, dict[str, st
             try:
                 parsed.append(parse_quantity(ratio, UNITS[unit]))
             except ValueError as exc:
-                raise _fail(str(exc), f"{where}.ratios.{i}", ratio) from None
+                raise fail(str(exc), f"{where}.ratios.{i}", ratio) from None
         out["ratios"] = parsed
     return out
 
 
-class ChainSpec(_Spec):
+def _parse_resolution(sensor: Any, kinds: dict[str, str], where: str) -> Any:
+    if not isinstance(sensor, dict) or sensor.get("resolution") is None or sensor.get("body") not in kinds:
+        return sensor
+    unit = "length" if kinds[sensor["body"]] == "translational" else "angle"
+    try:
+        return {**sensor, "resolution": parse_quantity(sensor["resolution"], UNITS[unit])}
+    except ValueError as exc:
+        raise fail(str(exc), f"{where}.resolution", sensor["resolution"]) from None
+
+
+class ChainSpec(Spec):
     """An n-mass / (n−1)-spring chain (nMmS) of translational bodies, driven on its first body.
 
     Bodies are named ``names`` (default ``m1 … mn``), spring i joins bodies i and i+1. The
@@ -335,9 +336,9 @@ class ChainSpec(_Spec):
         for key, expected in (("stiffnesses", n - 1), ("dampings", n - 1), ("viscous", n), ("names", n)):
             value = getattr(self, key)
             if value is not None and len(value) != expected and not (key == "stiffnesses" and n == 1 and not value):
-                raise _fail("expected {expected} entries for {n} masses", key, value, expected=expected, n=n)
+                raise fail("expected {expected} entries for {n} masses", key, value, expected=expected, n=n)
         if self.names is not None and len(set(self.names)) != n:
-            raise _fail("body names must be unique", "names", self.names)
+            raise fail("body names must be unique", "names", self.names)
         return self
 
     def to_lumped(self) -> LumpedSpec:
@@ -347,7 +348,7 @@ class ChainSpec(_Spec):
         return chain_to_lumped(self)
 
 
-class BeltRackSpec(_Spec):
+class BeltRackSpec(Spec):
     """The paper's Fig. 3 axis (2M1S): motor, belt with two wheels, gearwheel and rack, load.
 
     Parameters are the component values of Section II.C; :func:`sicomat.builders.belt_rack_to_lumped`
@@ -371,8 +372,8 @@ class BeltRackSpec(_Spec):
     f11eq: LinearDamping = 0.0
     mu11eq: TorsionalDamping = 0.0
     mu12eq: LinearDamping = 0.0
-    coulomb_motor: Annotated[float, _quantity("torque"), Field(ge=0)] = 0.0
-    coulomb_load: Annotated[float, _quantity("force"), Field(ge=0)] = 0.0
+    coulomb_motor: Annotated[float, quantity("torque"), Field(ge=0)] = 0.0
+    coulomb_load: Annotated[float, quantity("force"), Field(ge=0)] = 0.0
 
     def to_lumped(self) -> LumpedSpec:
         """The axis as a :class:`LumpedSpec` with bodies ``motor`` and ``load``."""
@@ -385,13 +386,50 @@ MechanicsSpec = Annotated[Union[LumpedSpec, ChainSpec, BeltRackSpec], Field(disc
 
 
 # --------------------------------------------------------------------------- machine
-class Axis(_Spec):
-    """One feed axis. Later stages add ``drive``, ``controller`` and ``trajectory`` beside ``mechanics``."""
+class Axis(Spec):
+    """One feed axis: its mechanics and, for the servo loop, its drive, controller and trajectory.
+
+    ``tool`` names the body whose position is the axis coordinate (the load or tool point) used
+    for the following error and to convert every feedback sensor into axis units; by default, the
+    body of the controller's position sensor.
+    """
 
     mechanics: MechanicsSpec
+    drive: DriveSpec | None = None
+    controller: ControllerSpec | None = None
+    trajectory: SetpointSpec | None = None
+    tool: Name | None = None
+
+    @model_validator(mode="after")
+    def _references(self) -> "Axis":
+        lumped = self.mechanics.to_lumped()
+        bodies, sensors, actuators = lumped.bodies, lumped.sensors, lumped.actuators
+        if self.tool is not None and self.tool not in bodies:
+            raise fail("unknown body {value}; expected one of {known}", "tool", self.tool,
+                       known=", ".join(bodies))
+        if self.drive is not None:
+            if self.drive.actuator is not None and self.drive.actuator not in actuators:
+                raise fail("unknown actuator {value}; expected one of {known}", "drive.actuator",
+                           self.drive.actuator, known=", ".join(actuators) or "(none: add one to the mechanics)")
+            if self.drive.actuator is None and len(actuators) != 1:
+                raise fail("the mechanics has {count} actuators; name the driven one in 'actuator'",
+                           "drive.actuator", None, count=len(actuators))
+        if self.controller is not None:
+            c = self.controller
+            for key in ("position_sensor", "velocity_sensor"):
+                name = getattr(c, key)
+                if name is not None and name not in sensors:
+                    raise fail("unknown sensor {value}; expected one of {known}", f"controller.{key}", name,
+                               known=", ".join(sensors) or "(none: add one to the mechanics)")
+            if sensors[c.position_sensor].kind != "position":
+                raise fail("the position loop needs a position sensor", "controller.position_sensor",
+                           c.position_sensor)
+            if self.drive is None:
+                raise fail("a controller needs a drive to command; add [axes.<name>.drive]", "drive", None)
+        return self
 
 
-class Machine(_Spec):
+class Machine(Spec):
     """A machine: a name and one or more named axes (the first is the default axis)."""
 
     name: str = ""

@@ -16,7 +16,7 @@ from .model import Machine
 __all__ = ["load_model", "machine_from_dict", "save_model", "dump_model", "parse_override",
            "with_overrides"]
 
-_UNION_TAGS = {"lumped", "chain", "belt-rack"}
+_UNION_TAGS = {"mechanics": {"lumped", "chain", "belt-rack"}, "trajectory": {"step", "ramp", "trapezoid"}}
 
 
 def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machine:
@@ -159,7 +159,7 @@ def _translate(exc: ValidationError, source: str | None) -> ModelError:
     errors = exc.errors()
     first = errors[0]
     loc = [str(p) for p in first["loc"]]
-    loc = [p for i, p in enumerate(loc) if not (p in _UNION_TAGS and i > 0 and loc[i - 1] == "mechanics")]
+    loc = [p for i, p in enumerate(loc) if not (i > 0 and p in _UNION_TAGS.get(loc[i - 1], ()))]
     ctx = first.get("ctx") or {}
     kind = first["type"]
     value, has_value = first.get("input"), True
@@ -179,7 +179,8 @@ def _translate(exc: ValidationError, source: str | None) -> ModelError:
         message = f"unknown type; expected one of {ctx.get('expected_tags')}"
         value = ctx.get("tag", value)
     elif kind == "union_tag_not_found":
-        message, has_value = f"missing key 'type'; expected one of {', '.join(sorted(_UNION_TAGS))}", False
+        tags = _UNION_TAGS.get(loc[-1] if loc else "", set())
+        message, has_value = f"missing key 'type'; expected one of {', '.join(sorted(tags))}", False
     elif kind == "string_pattern_mismatch":
         message = "expected a name made of letters, digits, '_' or '-', starting with a letter"
     else:

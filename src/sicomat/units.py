@@ -37,6 +37,21 @@ UNITS: dict[str, Unit] = {
     "linear_damping": Unit("N*s/m", "a linear damping coefficient (N*s/m)"),
     "torsional_damping": Unit("N*m*s/rad", "a torsional damping coefficient (N*m*s/rad)"),
     "dimensionless": Unit("", "a plain number"),
+    "fraction": Unit("", "a fraction from 0 to 1 (or a percentage such as '80 %')"),
+    "inverse_time": Unit("1/s", "a gain in 1/s"),
+    "velocity": Unit("m/s", "a velocity (m/s)"),
+    "acceleration": Unit("m/s**2", "an acceleration (m/s^2)"),
+    "jerk": Unit("m/s**3", "a jerk (m/s^3)"),
+    "current": Unit("A", "a current (A)"),
+    "voltage": Unit("V", "a voltage (V)"),
+    "resistance": Unit("ohm", "a resistance (ohm)"),
+    "inductance": Unit("H", "an inductance (H)"),
+    "force_constant": Unit("N/A", "a force constant (N/A)"),
+    "torque_constant": Unit("N*m/A", "a torque constant (N*m/A)"),
+    "linear_emf": Unit("V*s/m", "a back-EMF constant (V*s/m)"),
+    "rotary_emf": Unit("V*s/rad", "a back-EMF constant (V*s/rad)"),
+    "linear_velocity_gain": Unit("N*s/m", "a velocity gain (N*s/m)"),
+    "rotary_velocity_gain": Unit("N*m*s/rad", "a velocity gain (N*m*s/rad)"),
     "radius": Unit("m/rad", "a radius or lead per radian (m/rad, e.g. '25 mm' or '10 mm/rev')"),
     "inverse_radius": Unit("rad/m", "a ratio in rad/m"),
 }
@@ -101,7 +116,7 @@ def _parse_string(text: str, unit: Unit) -> float:
         return float(quantity)
     if quantity.dimensionless and unit.si and not ureg.Quantity(1, unit.si).dimensionless:
         # A plain number in a string is taken as SI, like a bare TOML number.
-        if quantity.unitless:
+        if not dict(quantity.unit_items()):
             return float(quantity.magnitude)
     try:
         return float(quantity.to(unit.si or "dimensionless").magnitude)

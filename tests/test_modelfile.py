@@ -1,0 +1,236 @@
+"""sicomat.modelfile: loading, overrides, saving and the error messages of model files."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from numpy.testing import assert_allclose
+
+from sicomat import (Machine, ModelError, dump_model, load_model, machine_from_dict, save_model,
+                     with_overrides)
+from sicomat.modelfile import parse_override
+
+EXAMPLES_DIR = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLE_FILES = sorted(EXAMPLES_DIR.glob("*.toml"))
+
+
+# --------------------------------------------------------------------------- examples and round trip
+def test_there_are_examples():
+    assert len(EXAMPLE_FILES) >= 4
+
+
+@pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.name)
+def test_every_example_loads(path):
+    machine = load_model(path)
+    assert isinstance(machine, Machine)
+    assert machine.axes
+
+
+@pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.name)
+def test_round_trip(path, tmp_path):
+    machine = load_model(path)
+    target = tmp_path / "copy.toml"
+    assert save_model(machine, target) == target
+    again = load_model(target)
+    assert again == machine
+    assert dump_model(again) == dump_model(machine)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["copy.toml"]   # no temp file left
+
+
+def test_units_are_parsed_to_si():
+    machine = load_model(EXAMPLES_DIR / "ballscrew_3m2s.toml")
+    mech = machine.axis().mechanics
+    assert_allclose(mech.bodies["motor"].inertia, 23e-4, rtol=1e-12)                 # 23 kg*cm^2
+    assert_allclose(mech.couplings["screw_nut"].ratios[0], 0.010 / (2 * 3.141592653589793), rtol=1e-12)
+
+
+# --------------------------------------------------------------------------- overrides
+def test_override_with_units():
+    machine = load_model(EXAMPLES_DIR / "paper_5m4s.toml",
+                         ["axes.X.mechanics.bodies.load.mass=300 kg"])
+    assert machine.axes["X"].mechanics.bodies["load"].mass == 300.0
+    # the rest is unchanged
+    original = load_model(EXAMPLES_DIR / "paper_5m4s.toml")
+    assert machine.axes["X"].mechanics.bodies["primary"] == original.axes["X"].mechanics.bodies["primary"]
+
+
+def test_override_with_toml_number_and_grams():
+    machine = load_model(EXAMPLES_DIR / "paper_5m4s.toml",
+                         ["axes.X.mechanics.bodies.load.mass=250",
+                          "axes.X.mechanics.bodies.scale_head.mass=12 g"])
+    bodies = machine.axes["X"].mechanics.bodies
+    assert bodies["load"].mass == 250.0
+    assert_allclose(bodies["scale_head"].mass, 0.012, rtol=1e-12)
+
+
+@pytest.mark.parametrize("item", ["axes.X.mechanics.bodies.load.mass=-3 kg",
+                                  "axes.X.mechanics.bodies.load.mass=3 m",
+                                  "axes.X.mechanics.bodies.load.masss=3"])
+def test_bad_override_raises_model_error_mentioning_set(item):
+    with pytest.raises(ModelError) as info:
+        load_model(EXAMPLES_DIR / "paper_5m4s.toml", [item])
+    text = str(info.value)
+    assert "--set" in text
+    assert "axes.X.mechanics.bodies.load" in text
+
+
+def test_override_without_equal_sign():
+    with pytest.raises(ModelError, match="--set"):
+        parse_override("axes.X.mechanics.bodies.load.mass")
+
+
+def test_with_overrides_in_python():
+    machine = machine_from_dict({"axes": {"X": {"mechanics": {"type": "chain", "masses": [1, 2],
+                                                              "stiffnesses": [10]}}}})
+    changed = with_overrides(machine, {"axes.X.mechanics.masses.1": "3 kg"})
+    assert changed.axes["X"].mechanics.masses == [1.0, 3.0]
+    assert machine.axes["X"].mechanics.masses == [1.0, 2.0]           # the original is unchanged
+
+
+# --------------------------------------------------------------------------- errors
+BASE = """\
+name = "bad"
+
+[axes.X.mechanics]
+type = "lumped"
+
+[axes.X.mechanics.bodies.a]
+mass = 2.0
+
+[axes.X.mechanics.bodies.b]
+mass = 3.0
+
+[axes.X.mechanics.couplings.k]
+between = ["a", "b"]
+stiffness = 100.0
+
+[axes.X.mechanics.actuators.motor]
+body = "a"
+"""
+
+EXTRA_BODY = "\n[axes.X.mechanics.bodies.c]\nmass = 1.0\n"
+EXTRA_PAIR = EXTRA_BODY + """
+[axes.X.mechanics.bodies.d]
+mass = 1.0
+
+[axes.X.mechanics.couplings.k2]
+between = ["c", "d"]
+stiffness = 5.0
+"""
+
+# (id, file text, key path expected in the message, value expected in the message or None)
+ERROR_CASES = [
+    ("body-without-mass", BASE.replace("mass = 2.0\n", ""), "axes.X.mechanics.bodies.a", None),
+    ("coupling-without-between", BASE.replace('between = ["a", "b"]\n', ""),
+     "axes.X.mechanics.couplings.k.between", None),
+    ("mass-bool", BASE.replace("mass = 2.0", "mass = true"), "axes.X.mechanics.bodies.a.mass", "True"),
+    ("mass-list", BASE.replace("mass = 2.0", "mass = [1]"), "axes.X.mechanics.bodies.a.mass", "[1]"),
+    ("mass-negative", BASE.replace("mass = 2.0", "mass = -2.5"), "axes.X.mechanics.bodies.a.mass", "-2.5"),
+    ("mass-zero", BASE.replace("mass = 2.0", 'mass = "0 kg"'), "axes.X.mechanics.bodies.a.mass", "0 kg"),
+    ("stiffness-negative", BASE.replace("stiffness = 100.0", "stiffness = -100.0"),
+     "axes.X.mechanics.couplings.k.stiffness", "-100.0"),
+    ("unknown-unit", BASE.replace("mass = 2.0", 'mass = "3 kgg"'), "axes.X.mechanics.bodies.a.mass",
+     "3 kgg"),
+    ("wrong-dimension", BASE.replace("mass = 2.0", 'mass = "3 m"'), "axes.X.mechanics.bodies.a.mass",
+     "3 m"),
+    ("stiffness-wrong-dimension", BASE.replace("stiffness = 100.0", 'stiffness = "3 kg"'),
+     "axes.X.mechanics.couplings.k.stiffness", "3 kg"),
+    ("unknown-body", BASE.replace('between = ["a", "b"]', 'between = ["a", "zed"]'),
+     "axes.X.mechanics.couplings.k.between", "zed"),
+    ("actuator-unknown-body", BASE.replace('body = "a"', 'body = "zed"'),
+     "axes.X.mechanics.actuators.motor.body", "zed"),
+    ("body-linked-to-nothing", BASE + EXTRA_BODY, "axes.X.mechanics.bodies.c", "c"),
+    ("two-groups", BASE + EXTRA_PAIR, "axes.X.mechanics.bodies.c", "d"),
+    ("typo", BASE.replace("stiffness = 100.0", "stifness = 100.0"),
+     "axes.X.mechanics.couplings.k.stifness", "100.0"),
+    ("unknown-top-key", BASE.replace('name = "bad"', 'nmae = "bad"'), "nmae", "bad"),
+    ("unknown-mechanics-type", BASE.replace('type = "lumped"', 'type = "lumpy"'),
+     "axes.X.mechanics", "lumpy"),
+    ("no-mechanics-type", BASE.replace('type = "lumped"\n', ""), "axes.X.mechanics", None),
+    ("chain-lengths", 'name = "c"\n[axes.X.mechanics]\ntype = "chain"\nmasses = [1, 2, 3]\n'
+                      'stiffnesses = [10]\n', "axes.X.mechanics.stiffnesses", "[10.0]"),
+    ("bad-body-name", BASE.replace("bodies.b]", "bodies.2b]").replace('["a", "b"]', '["a", "2b"]'),
+     "axes.X.mechanics.bodies", "2b"),
+]
+
+
+@pytest.mark.parametrize(("text", "key_path", "value"), [c[1:] for c in ERROR_CASES],
+                         ids=[c[0] for c in ERROR_CASES])
+def test_model_errors_name_file_path_and_value(tmp_path, text, key_path, value):
+    path = tmp_path / "bad_model.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    message = str(info.value)
+    assert str(path) in message
+    assert key_path in message
+    assert info.value.path is not None and info.value.path.startswith(key_path)
+    if value is not None:
+        assert value in message
+    assert isinstance(info.value, ValueError)
+
+
+def test_base_model_is_valid(tmp_path):
+    # the error cases above differ from a valid file by one edit
+    path = tmp_path / "good.toml"
+    path.write_text(BASE, encoding="utf-8")
+    assert load_model(path).axes["X"].mechanics.bodies["a"].mass == 2.0
+
+
+def test_not_toml(tmp_path):
+    path = tmp_path / "garbage.toml"
+    path.write_text("this is [not toml\n", encoding="utf-8")
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    assert str(path) in str(info.value)
+    assert "TOML" in str(info.value)
+
+
+def test_not_utf8(tmp_path):
+    path = tmp_path / "binary.toml"
+    path.write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    assert str(path) in str(info.value)
+
+
+def test_missing_file(tmp_path):
+    path = tmp_path / "does_not_exist.toml"
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    assert str(path) in str(info.value)
+
+
+def test_machine_from_dict_without_source():
+    with pytest.raises(ModelError) as info:
+        machine_from_dict({"axes": {"X": {"mechanics": {"type": "chain", "masses": [-1]}}}})
+    assert "axes.X.mechanics.masses.0" in str(info.value)
+    assert "-1" in str(info.value)
+
+
+# --------------------------------------------------------------------------- atomic save
+def test_save_model_is_atomic(tmp_path, monkeypatch):
+    machine = load_model(EXAMPLES_DIR / "paper_5m4s.toml")
+    target = tmp_path / "model.toml"
+    target.write_text("# the previous content\n", encoding="utf-8")
+
+    def failing_replace(src, dst, *args, **kwargs):
+        raise OSError("disk on fire")
+
+    monkeypatch.setattr(os, "replace", failing_replace)
+    with pytest.raises(OSError, match="disk on fire"):
+        save_model(machine, target)
+    monkeypatch.undo()
+    assert target.read_text(encoding="utf-8") == "# the previous content\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["model.toml"]
+
+
+def test_save_model_overwrites(tmp_path):
+    target = tmp_path / "model.toml"
+    target.write_text("# old\n", encoding="utf-8")
+    machine = load_model(EXAMPLES_DIR / "paper_2m1s.toml")
+    save_model(machine, target)
+    assert load_model(target) == machine
+    assert [p.name for p in tmp_path.iterdir()] == ["model.toml"]
