@@ -57,11 +57,18 @@ class Plant:
         return np.linalg.eigvals(self.A)
 
     def to_control(self) -> "control.StateSpace":
-        """The plant as a python-control ``StateSpace`` with the same signal names."""
+        """The plant as a python-control ``StateSpace`` with the same signal names.
+
+        python-control reserves ``.`` in input and output names (``subsystem.signal``), so an input
+        ``load.force`` becomes ``load_force`` there; state names are kept.
+        """
         import control
 
+        def names(items):
+            return [name.replace(".", "_") for name in items]
+
         return control.ss(self.A, self.B, self.C, self.D, states=list(self.states),
-                          inputs=list(self.inputs), outputs=list(self.outputs))
+                          inputs=names(self.inputs), outputs=names(self.outputs))
 
     def select(self, inputs: Iterable[str] | None = None, outputs: Iterable[str] | None = None) -> "Plant":
         """The sub-plant from some inputs to some outputs, by name."""

@@ -12,7 +12,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from .modal import ModalResult
 
-__all__ = ["plot_modes", "save_figure"]
+__all__ = ["plot_modes", "plot_timeseries", "save_figure"]
 
 
 def _figure(**kwargs) -> "Figure":
@@ -46,6 +46,38 @@ def plot_modes(result: "ModalResult", max_modes: int = 8) -> "Figure":
     f_meca = result.f_meca_hz
     suffix = f" — suggested f_meca = {f_meca:.4g} Hz" if f_meca else ""
     fig.suptitle(f"Mode shapes{suffix}", fontsize=10)
+    return fig
+
+
+def plot_timeseries(series, signals=None) -> "Figure":
+    """Three stacked panels: positions, following error (µm), effort command; or chosen signals."""
+    t = series.time
+    if signals:
+        fig = _figure(figsize=(8, 2.2 * len(signals) + 0.5), layout="constrained")
+        axes = fig.subplots(len(signals), 1, sharex=True, squeeze=False)[:, 0]
+        for ax, name in zip(axes, signals):
+            ax.plot(t, series[name], linewidth=1.0)
+            ax.set_ylabel(name, fontsize=8)
+            ax.grid(True, alpha=0.3)
+        axes[-1].set_xlabel("time (s)")
+        return fig
+    fig = _figure(figsize=(8, 7), layout="constrained")
+    ax1, ax2, ax3 = fig.subplots(3, 1, sharex=True)
+    ax1.plot(t, series["setpoint.fine"] * 1e3, label="setpoint", linewidth=1.0)
+    ax1.plot(t, (series["setpoint.fine"] - series["following_error"]) * 1e3, label="position (feedback)",
+             linewidth=1.0)
+    ax1.plot(t, series["tool.position"] * 1e3, label="tool", linewidth=0.8, linestyle="--")
+    ax1.set_ylabel("position (mm)")
+    ax1.legend(fontsize=8)
+    ax2.plot(t, series["following_error"] * 1e6, linewidth=1.0)
+    ax2.set_ylabel("following error (µm)")
+    ax3.plot(t, series["effort.command"], linewidth=1.0, label="command")
+    ax3.plot(t, series["drive.effort"], linewidth=0.8, label="drive")
+    ax3.set_ylabel("force / torque")
+    ax3.legend(fontsize=8)
+    ax3.set_xlabel("time (s)")
+    for ax in (ax1, ax2, ax3):
+        ax.grid(True, alpha=0.3)
     return fig
 
 

@@ -56,6 +56,177 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             print_modal(name, result)
 
 
+@app.command()
+def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
+             duration: Optional[float] = typer.Option(None, "--duration", help="Simulated time (s); "
+                                                      "default: the move plus a settling margin."),
+             step: Optional[float] = typer.Option(None, "--step", metavar="MM", help="Position step (mm)."),
+             move: Optional[float] = typer.Option(None, "--move", metavar="MM",
+                                                  help="Trapezoidal move (mm) with the model's or default limits."),
+             max_velocity: Optional[float] = typer.Option(None, "--max-velocity", metavar="M_S",
+                                                          help="Velocity limit of --move (m/s)."),
+             max_acceleration: Optional[float] = typer.Option(None, "--max-acceleration", metavar="M_S2",
+                                                              help="Acceleration limit of --move (m/s^2)."),
+             linear: bool = typer.Option(False, "--linear", help="Drop limits, quantizers and Coulomb friction."),
+             out: Optional[Path] = typer.Option(None, "--out", help="Write every signal to this CSV file.",
+                                                dir_okay=False),
+             set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
+             plot: Optional[Path] = PlotOption) -> None:
+    """Simulate the closed servo loop of an axis (hybrid, multi-rate, exact between samples)."""
+    with guarded(model):
+        from ..loop import build_servo_loop
+        from ..simulate import simulate as run_simulation
+        from .simulate_cmd import choose_profile, simulate_payload
+
+        machine = load(model, set_)
+        loop = build_servo_loop(machine, axis)
+        profile, default_duration = choose_profile(machine.axes[loop.axis].trajectory, step, move,
+                                                   max_velocity, max_acceleration)
+        series = run_simulation(loop, profile, duration if duration is not None else default_duration,
+                                nonlinear=not linear)
+        if out is not None:
+            series.to_csv(out)
+        if plot is not None:
+            from ..plotting import save_figure
+
+            save_figure(series.plot(), plot)
+        payload = simulate_payload(series)
+        if json_:
+            emit_json(payload)
+        else:
+            from .tables import print_metrics
+
+            print_metrics(loop.axis, payload)
+
+
+@app.command()
+def bode(model: Path = ModelArgument,
+         loop: str = typer.Option("velocity-open", "--loop",
+                                  help="velocity-open|velocity-closed|position-open|position-closed|plant|"
+                                       "compliance|following-error|disturbance"),
+         axis: Optional[str] = AxisOption, points: int = typer.Option(2000, "--points", min=10, max=200000),
+         nichols: bool = typer.Option(False, "--nichols", help="Draw a Nichols chart instead of a Bode plot."),
+         set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
+    """Frequency response of a loop, with the digital effects exact (Bode or Nichols)."""
+    with guarded(model):
+        from ..loop import build_servo_loop
+        from ..looptf import LoopAnalysis, default_omega
+        from .analysis_cmd import bode_payload
+
+        machine = load(model, set_)
+        servo = build_servo_loop(machine, axis)
+        an = LoopAnalysis.of(servo)
+        frf = an.response(loop, default_omega(servo, loop, points) if loop in _LOOP_NAMES else None)
+        margins = None
+        if frf.open_loop:
+            from ..margins import stability_margins
+
+            margins = stability_margins(frf)
+        if plot is not None:
+            from ..freqplot import bode_figure, nichols_figure
+            from ..plotting import save_figure
+
+            figure = nichols_figure([frf], margins=margins) if nichols else bode_figure([frf], margins=margins)
+            save_figure(figure, plot)
+        if json_:
+            emit_json(bode_payload(frf, margins))
+        else:
+            from .tables import print_margins
+
+            print_margins(servo.axis, {frf.name: margins} if margins is not None else {},
+                          note=f"{frf.name}: {len(frf.omega)} points up to {frf.omega[-1]:.4g} rad/s")
+
+
+@app.command()
+def margins(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
+            set_: Optional[List[str]] = SetOption, json_: bool = JsonOption) -> None:
+    """Stability margins of the velocity and position loops (all crossovers; the worst reported)."""
+    with guarded(model):
+        from ..loop import build_servo_loop
+        from ..looptf import LoopAnalysis
+        from ..margins import stability_margins
+        from .analysis_cmd import margins_payload
+
+        machine = load(model, set_)
+        servo = build_servo_loop(machine, axis)
+        an = LoopAnalysis.of(servo)
+        velocity = stability_margins(an.response("velocity-open"))
+        position = stability_margins(an.response("position-open"))
+        if json_:
+            emit_json({"axis": servo.axis, **margins_payload(velocity, position)})
+        else:
+            from .tables import print_margins
+
+            print_margins(servo.axis, {"velocity loop": velocity, "position loop": position})
+
+
+@app.command()
+def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
+         method: str = typer.Option("frequency", "--method", help="frequency (margins) or time (step responses)"),
+         velocity_crossover: Optional[float] = typer.Option(None, "--velocity-crossover", metavar="RAD_S",
+                                                            help="Default: 2*pi*f_meca/4."),
+         velocity_phase_margin: float = typer.Option(45.0, "--velocity-phase-margin", metavar="DEG"),
+         position_phase_margin: Optional[float] = typer.Option(None, "--position-phase-margin", metavar="DEG",
+                                                               help="Default 80 unless --position-crossover."),
+         position_crossover: Optional[float] = typer.Option(None, "--position-crossover", metavar="RAD_S"),
+         min_gain_margin: float = typer.Option(6.0, "--min-gain-margin", metavar="DB"),
+         apply_notch: bool = typer.Option(False, "--apply-notch",
+                                          help="When a notch is suggested, write and report the tuning with it."),
+         write: Optional[Path] = typer.Option(None, "--write", metavar="TUNED.toml", dir_okay=False,
+                                              help="Write a copy of the model with the tuned controller."),
+         set_: Optional[List[str]] = SetOption, json_: bool = JsonOption) -> None:
+    """Tune the cascade controller: frequency approach (margins, bandwidth) or time approach (steps)."""
+    with guarded(model):
+        from ..errors import ModelError
+        from ..loop import build_servo_loop
+        from .analysis_cmd import write_tuned
+
+        if method not in ("frequency", "time"):
+            raise ModelError("expected 'frequency' or 'time'", source="--method", value=method)
+        if position_phase_margin is not None and position_crossover is not None:
+            raise ModelError("give either --position-phase-margin or --position-crossover", source="options")
+        machine = load(model, set_)
+        servo = build_servo_loop(machine, axis)
+        if method == "time":
+            from ..tuning_time import tune_time
+
+            result = tune_time(servo)
+            payload = result.to_dict()
+            gains = {"Kp": result.Kp, "Kp_normalized": result.Kp_normalized, "Ti": result.Ti, "Kv": result.Kv}
+            notch = None
+        else:
+            from ..tuning import TuningTargets, tune_frequency
+
+            targets = TuningTargets(velocity_crossover=velocity_crossover,
+                                    velocity_phase_margin=velocity_phase_margin,
+                                    position_phase_margin=None if position_crossover is not None
+                                    else (position_phase_margin if position_phase_margin is not None else 80.0),
+                                    position_crossover=position_crossover, min_gain_margin=min_gain_margin)
+            result = tune_frequency(servo, targets)
+            chosen = result.with_notch if apply_notch and result.with_notch is not None else result
+            payload = {"method": "frequency", **chosen.to_dict()}
+            if chosen is not result:
+                payload["achieved"]["notch"] = result.notch
+                payload["notch_applied"] = True
+            payload["wall_time_s"] = result.wall_time_s
+            t = chosen.tuned
+            gains = {"Kp": t.Kp, "Kp_normalized": t.Kp_normalized, "Ti": t.Ti, "Kv": t.Kv}
+            notch = result.notch if chosen is not result else None
+        if write is not None:
+            write_tuned(machine, servo.axis, gains, notch, write)
+            payload["written"] = str(write)
+        if json_:
+            emit_json({"axis": servo.axis, **payload})
+        else:
+            from .tables import print_tuning
+
+            print_tuning(servo.axis, payload)
+
+
+_LOOP_NAMES = ("plant", "velocity-open", "velocity-closed", "position-open", "position-closed",
+               "following-error", "compliance", "disturbance")
+
+
 def main() -> None:
     """Run the ``sicomat`` program."""
     app()

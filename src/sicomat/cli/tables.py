@@ -100,3 +100,76 @@ def print_modal(axis: str, result: "ModalResult") -> None:
     console.print(shapes)
     if result.f_meca_hz is not None:
         console.print(f"suggested f_meca = {result.f_meca_hz:.4g} Hz (first flexible mode the loop sees)")
+
+
+def print_metrics(axis: str, payload: dict[str, Any]) -> None:
+    """Print the figures of ``sicomat simulate``."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"axis {axis}: simulation ({payload['samples']} steps of {payload['step_s'] * 1e6:g} µs, "
+                        f"{payload['wall_time_s'] * 1e3:.1f} ms)", title_justify="left")
+    table.add_column("figure")
+    table.add_column("value", justify="right")
+    for key, scale, unit in (("max_following_error", 1e6, "µm"), ("rms_following_error", 1e6, "µm"),
+                             ("final_error", 1e6, "µm"), ("overshoot_percent", 1, "%"),
+                             ("rise_time", 1e3, "ms"), ("settling_time", 1e3, "ms")):
+        value = payload[key]
+        table.add_row(key, "-" if value is None else f"{value * scale:.4g} {unit}")
+    Console(highlight=False).print(table)
+
+
+def print_margins(axis: str, margins: dict[str, Any], note: str | None = None) -> None:
+    """Print stability margins of one or more loops."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(highlight=False)
+    if note:
+        console.print(note)
+    if not margins:
+        return
+    table = Table(title=f"axis {axis}: stability margins (worst over all crossovers)", title_justify="left")
+    table.add_column("loop")
+    for col in ("PM (deg)", "at (rad/s)", "GM (dB)", "at (rad/s)", "delay margin (ms)", "modulus margin",
+                "bandwidth (rad/s)", "crossovers"):
+        table.add_column(col, justify="right")
+
+    def f(x, fmt="{:.3g}"):
+        return "-" if x is None or x != x or x in (float("inf"), float("-inf")) else fmt.format(x)
+
+    for name, m in margins.items():
+        table.add_row(name, f(m.phase_margin_deg, "{:.1f}"), f(m.gain_crossover_rad_s, "{:.4g}"),
+                      f(m.gain_margin_db, "{:.1f}"), f(m.phase_crossover_rad_s, "{:.4g}"),
+                      f(m.delay_margin_s * 1e3), f(m.modulus_margin), f(m.bandwidth_rad_s, "{:.4g}"),
+                      str(len(m.gain_crossovers)))
+    console.print(table)
+
+
+def print_tuning(axis: str, payload: dict[str, Any]) -> None:
+    """Print the result of ``sicomat tune``."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(highlight=False)
+    table = Table(title=f"axis {axis}: {payload.get('method', 'frequency')} tuning", title_justify="left")
+    table.add_column("gain")
+    if "initial" in payload:
+        table.add_column("initial (rigid)", justify="right")
+    table.add_column("tuned", justify="right")
+    rows = (("Kp (1/s, normalised)", ("velocity", "Kp")), ("Kp (SI)", ("velocity", "Kp_si")),
+            ("Ti (s)", ("velocity", "Ti")), ("Kv (1/s)", ("position", "Kv")))
+    for label, (group, key) in rows:
+        cells = [f"{payload['initial'][group][key]:.5g}"] if "initial" in payload else []
+        table.add_row(label, *cells, f"{payload[group][key]:.5g}")
+    console.print(table)
+    achieved = payload.get("achieved", {})
+    for key, value in achieved.items():
+        if key in ("unmet",) or value is None:
+            continue
+        console.print(f"  {key}: {value:.4g}" if isinstance(value, float) else f"  {key}: {value}")
+    for item in achieved.get("unmet", []):
+        console.print(f"  [yellow]not met:[/] {item}")
+    if "equivalent_delay_s" in payload:
+        console.print(f"  equivalent delay of the rigid tuning: {payload['equivalent_delay_s'] * 1e3:.3f} ms")
+    console.print(f"  tuning time: {payload['wall_time_s'] * 1e3:.1f} ms")
