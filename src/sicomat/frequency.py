@@ -1,0 +1,204 @@
+"""Frequency responses: fast, vectorised evaluation of LTI systems (continuous or ZOH-sampled) and the
+result object every loop transfer is returned in."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import scipy.linalg
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas
+
+__all__ = ["FrequencyResponse", "ModalForm", "modal_form", "continuous_response", "sampled_response",
+           "response_at", "zoh_matrices"]
+
+
+@dataclass(frozen=True, eq=False)
+class FrequencyResponse:
+    """A SISO frequency response ``H(jω)`` on a grid.
+
+    Attributes
+    ----------
+    omega : ndarray, shape (n,)
+        Angular frequencies (rad/s), ascending, > 0.
+    response : ndarray of complex, shape (n,)
+        The complex response at ``omega``.
+    name : str
+        What this is, e.g. ``"velocity-open"``.
+    sample_period : float or None
+        For a sampled loop: its period (s); ``omega`` then stays below the Nyquist frequency π/T.
+    open_loop : bool
+        True for a loop gain ``L`` (margins apply to it; the feedback is negative: ``1 + L``).
+    info : dict
+        Units and context (``"input"``, ``"output"``, ...).
+    """
+
+    omega: np.ndarray
+    response: np.ndarray
+    name: str = ""
+    sample_period: float | None = None
+    open_loop: bool = False
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        """Frequencies (Hz)."""
+        return self.omega / (2 * np.pi)
+
+    @property
+    def magnitude(self) -> np.ndarray:
+        """|H|."""
+        return np.abs(self.response)
+
+    @property
+    def magnitude_db(self) -> np.ndarray:
+        """20 log10 |H| (dB)."""
+        with np.errstate(divide="ignore"):
+            return 20.0 * np.log10(np.abs(self.response))
+
+    @property
+    def phase_deg(self) -> np.ndarray:
+        """Unwrapped phase (degrees), starting in (−360°, 0°] for a loop gain with integrators."""
+        phase = np.unwrap(np.angle(self.response))
+        if self.open_loop and phase.size:
+            phase -= 2 * np.pi * np.ceil(phase[0] / (2 * np.pi))
+        return np.degrees(phase)
+
+    def to_pandas(self) -> "pandas.DataFrame":
+        """Columns: frequency_hz, magnitude, magnitude_db, phase_deg, real, imag (index: omega)."""
+        import pandas as pd
+
+        return pd.DataFrame({"frequency_hz": self.frequency_hz, "magnitude": self.magnitude,
+                             "magnitude_db": self.magnitude_db, "phase_deg": self.phase_deg,
+                             "real": self.response.real, "imag": self.response.imag},
+                            index=pd.Index(self.omega, name="omega"))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (lists)."""
+        return {"name": self.name, "sample_period": self.sample_period, "open_loop": self.open_loop,
+                "omega": self.omega.tolist(), "frequency_hz": self.frequency_hz.tolist(),
+                "magnitude_db": [float(x) if np.isfinite(x) else None for x in self.magnitude_db],
+                "phase_deg": self.phase_deg.tolist()}
+
+    def plot(self, kind: str = "bode"):
+        """A Bode (``kind="bode"``) or Nichols (``kind="nichols"``) figure."""
+        from .freqplot import bode_figure, nichols_figure
+
+        return bode_figure([self]) if kind == "bode" else nichols_figure([self])
+
+
+@dataclass(frozen=True, eq=False)
+class ModalForm:
+    """``A = S diag(A1, A2) S⁻¹``: a small dense block ``A1`` (eigenvalues near 0: rigid modes,
+    possibly defective) and a diagonal block ``λ`` (``A2 = V diag(λ) V⁻¹``), with the input and output
+    maps transformed accordingly, so that ``C (sI − A)⁻¹ B = C1 (sI − A1)⁻¹ B1 + Σ r_i / (s − λ_i)``."""
+
+    A1: np.ndarray
+    B1: np.ndarray
+    C1: np.ndarray
+    lam: np.ndarray
+    B2: np.ndarray   # V⁻¹ B, rows per eigenvalue
+    C2: np.ndarray   # C V, columns per eigenvalue
+    D: np.ndarray
+
+
+def modal_form(A, B, C, D=None, *, cluster: float = 1e-7) -> ModalForm:
+    """Decompose a state space for fast frequency responses.
+
+    Eigenvalues with ``|λ| ≤ cluster · max(1, ‖A‖)`` (rigid-body modes, integrators) are split off
+    by an ordered real Schur form and a Sylvester equation; the rest is diagonalised.
+    """
+    A = np.asarray(A, dtype=float)
+    B = np.atleast_2d(np.asarray(B, dtype=float))
+    C = np.atleast_2d(np.asarray(C, dtype=float))
+    D = np.zeros((C.shape[0], B.shape[1])) if D is None else np.atleast_2d(np.asarray(D, dtype=float))
+    n = A.shape[0]
+    if n == 0:
+        return ModalForm(np.zeros((0, 0)), np.zeros((0, B.shape[1])), np.zeros((C.shape[0], 0)),
+                         np.zeros(0, complex), np.zeros((0, B.shape[1]), complex),
+                         np.zeros((C.shape[0], 0), complex), D)
+    scale = max(1.0, float(np.linalg.norm(A, 1)))
+    lam, V = scipy.linalg.eig(A)
+    small = np.abs(lam) <= cluster * scale
+    if not small.any() or np.linalg.cond(V) < 1e10:  # diagonalisable: one eigendecomposition suffices
+        B2 = np.linalg.solve(V, B.astype(complex))
+        return ModalForm(np.zeros((0, 0)), np.zeros((0, B.shape[1])), np.zeros((C.shape[0], 0)),
+                         lam, B2, C @ V, D)
+    T, Z, k = scipy.linalg.schur(A, output="real", sort=lambda re, im: np.hypot(re, im) <= cluster * scale)
+    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
+    X = scipy.linalg.solve_sylvester(T11, -T22, -T12) if k and k < n else np.zeros((k, n - k))
+    # A Z = Z T; with W = Z [[I, X], [0, I]]: W⁻¹ A W = diag(T11, T22)
+    Bz, Cz = Z.T @ B, C @ Z
+    B1 = Bz[:k] - X @ Bz[k:]
+    B2r = Bz[k:]
+    C1 = Cz[:, :k]
+    C2r = Cz[:, :k] @ X + Cz[:, k:]
+    lam, V = scipy.linalg.eig(T22)
+    B2 = np.linalg.solve(V, B2r.astype(complex)) if n - k else np.zeros((0, B.shape[1]), complex)
+    C2 = C2r @ V
+    return ModalForm(T11, B1, C1, lam, B2, C2, D)
+
+
+def continuous_response(form: ModalForm, omega: np.ndarray) -> np.ndarray:
+    """``C (jωI − A)⁻¹ B + D`` for all ω: array (n_out, n_in, n_omega)."""
+    return response_at(form, 1j * np.asarray(omega, dtype=float))
+
+
+def response_at(form: ModalForm, points: np.ndarray) -> np.ndarray:
+    """``C (pI − A)⁻¹ B + D`` at complex points p (``s = jω``, or ``z = e^{jωT}`` for a discrete A)."""
+    s = np.asarray(points, dtype=complex)
+    return _evaluate(form, s, lambda lam: 1.0 / (s[None, :] - lam[:, None]), lambda A1: _resolvent(A1, s))
+
+
+def sampled_response(form: ModalForm, omega: np.ndarray, period: float) -> np.ndarray:
+    """The ZOH-sampled system ``C (zI − Φ)⁻¹ Γ + D`` at ``z = e^{jωT}`` (input held over each period,
+    output sampled): array (n_out, n_in, n_omega). Exact: Φ = e^{AT}, Γ = ∫₀ᵀ e^{At} dt B."""
+    z = np.exp(1j * np.asarray(omega, dtype=float) * period)
+    k = form.A1.shape[0]
+    if k:
+        aug = np.zeros((k + form.B1.shape[1], k + form.B1.shape[1]))
+        aug[:k, :k] = form.A1 * period
+        aug[:k, k:] = form.B1 * period
+        E = scipy.linalg.expm(aug)
+        phi1, gam1 = E[:k, :k], E[:k, k:]
+    else:
+        phi1, gam1 = np.zeros((0, 0)), form.B1
+    mu = np.exp(form.lam * period)
+    x = form.lam * period
+    safe = np.where(np.abs(x) > 1e-300, x, 1.0)
+    gain = np.where(np.abs(x) > 1e-300, np.expm1(safe) / safe, 1.0) * period  # ∫₀ᵀ e^{λt} dt
+    part1 = np.einsum("ik,kjw->ijw", form.C1, _apply(_resolvent(phi1, z), gam1)) if k else 0.0
+    part2 = np.einsum("ik,kw,kj->ijw", form.C2, 1.0 / (z[None, :] - mu[:, None]), gain[:, None] * form.B2)
+    return (part1 + part2 + form.D[:, :, None]).astype(complex)
+
+
+def _evaluate(form: ModalForm, s, diag, resolvent):
+    k = form.A1.shape[0]
+    part2 = np.einsum("ik,kw,kj->ijw", form.C2, diag(form.lam), form.B2)
+    part1 = np.einsum("ik,kjw->ijw", form.C1, _apply(resolvent(form.A1), form.B1)) if k else 0.0
+    return (part1 + part2 + form.D[:, :, None]).astype(complex)
+
+
+def _resolvent(A1: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``(s I − A1)⁻¹`` for each s: array (n_s, k, k)."""
+    k = A1.shape[0]
+    M = s[:, None, None] * np.eye(k)[None] - A1[None]
+    return np.linalg.inv(M)
+
+
+def _apply(resolvents: np.ndarray, B1: np.ndarray) -> np.ndarray:
+    """(n_s, k, k) @ (k, m) → (k, m, n_s)."""
+    return np.einsum("wab,bj->ajw", resolvents, B1)
+
+
+def zoh_matrices(A: np.ndarray, B: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact ZOH discretisation: ``Φ = e^{AT}``, ``Γ = ∫₀ᵀ e^{At} dt B``."""
+    n, m = A.shape[0], B.shape[1]
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n] = A * period
+    aug[:n, n:] = B * period
+    E = scipy.linalg.expm(aug)
+    return E[:n, :n], E[:n, n:]

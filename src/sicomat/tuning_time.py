@@ -1,0 +1,243 @@
+"""Controller tuning, time approach (paper III.B.3): calibrated step responses, loop by loop.
+
+The method of the NC manufacturers: the velocity loop first, with Ti large (0.5 s) so the integral
+action sits far below the bandwidth; Kp is adjusted for a step overshoot near 10 %; then Ti for an
+overshoot between 20 % and 40 %; finally Kv of the position loop for a desired position overshoot.
+The step responses are those of the exact sampled linear loops (velocity loop at Tv, position loop
+lifted at Tp; :mod:`sicomat.looptf`), so every effect of the digital control and of the flexible
+mechanics is in them. Each iteration is recorded with its rise time and overshoot.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .errors import AnalysisError
+from .looptf import LoopAnalysis
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .loop import ServoLoop
+
+__all__ = ["TimeTargets", "StepResponse", "TimeTuningResult", "velocity_step", "position_step", "tune_time"]
+
+
+@dataclass(frozen=True)
+class TimeTargets:
+    """Targets of the time approach (overshoots in percent)."""
+
+    initial_Ti: float = 0.5
+    velocity_overshoot_p: float = 10.0
+    velocity_overshoot_pi: tuple[float, float] = (20.0, 40.0)
+    position_overshoot: float = 1.0
+    tolerance: float = 0.5
+
+
+@dataclass(frozen=True)
+class StepResponse:
+    """A unit step response of a sampled loop with its rise time (10–90 %) and overshoot."""
+
+    time: np.ndarray
+    response: np.ndarray
+    overshoot_percent: float
+    rise_time: float | None
+    stable: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready figures (without the samples)."""
+        return {"overshoot_percent": self.overshoot_percent, "rise_time": self.rise_time, "stable": self.stable}
+
+
+def _step(A: np.ndarray, B: np.ndarray, C: np.ndarray, period: float, n: int) -> StepResponse:
+    x = np.zeros(A.shape[0])
+    y = np.empty(n)
+    for k in range(n):
+        y[k] = C @ x
+        x = A @ x + B
+    stable = bool(np.max(np.abs(np.linalg.eigvals(A))) < 1.0 - 1e-12)
+    t = np.arange(n) * period
+    final = y[-1] if stable else 1.0
+    overshoot = float(max(0.0, (np.max(y) - final) / abs(final) * 100.0)) if final != 0 and np.isfinite(final) else np.inf
+    rise = None
+    if np.isfinite(final) and final != 0:
+        norm = y / final
+        above10, above90 = np.flatnonzero(norm >= 0.1), np.flatnonzero(norm >= 0.9)
+        if above10.size and above90.size:
+            rise = float(t[above90[0]] - t[above10[0]])
+    return StepResponse(t, y, overshoot if stable else np.inf, rise, stable)
+
+
+def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None = None) -> StepResponse:
+    """Response of the measured velocity to a unit step of the velocity command."""
+    A, B, C = an.velocity_closed_loop(Kp, Ti)
+    # drop the position integrator (it does not act on the velocity): keep the output row of v_meas
+    T = an.loop.controller.velocity_period
+    n = int(round((duration or max(30 * Ti if Ti < 0.05 else 0.5, 0.1)) / T))
+    return _step_with_marginal(A, B[:, 0], C[1], T, n)
+
+
+def _step_with_marginal(A, B, C, period, n) -> StepResponse:
+    """Step response where eigenvalues at exactly 1 (the free position of the axis) are unobservable."""
+    x = np.zeros(A.shape[0])
+    y = np.empty(n)
+    for k in range(n):
+        y[k] = C @ x
+        x = A @ x + B
+    mags = np.abs(np.linalg.eigvals(A))
+    stable = bool(np.all((mags < 1.0 - 1e-12) | (np.abs(mags - 1.0) < 1e-9)))  # the position integrator
+    if not np.all(np.isfinite(y)) or np.max(np.abs(y)) > 1e6:
+        stable = False
+    t = np.arange(n) * period
+    final = float(np.mean(y[-max(3, n // 50):]))
+    if not stable or abs(final) < 1e-12:
+        return StepResponse(t, y, np.inf, None, False)
+    norm = y / final
+    overshoot = float(max(0.0, (np.max(norm) - 1.0) * 100.0))
+    above10, above90 = np.flatnonzero(norm >= 0.1), np.flatnonzero(norm >= 0.9)
+    rise = float(t[above90[0]] - t[above10[0]]) if above10.size and above90.size else None
+    return StepResponse(t, y, overshoot, rise, True)
+
+
+def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: float | None = None) -> StepResponse:
+    """Response of the measured position to a unit position step (position loop at Tp, lifted)."""
+    A, B, C = an.velocity_closed_loop(Kp, Ti)
+    loop = an.loop
+    Np = loop.position_ratio
+    Ap = np.linalg.matrix_power(A, Np)
+    Bp = sum(np.linalg.matrix_power(A, i) @ B[:, 0] for i in range(Np))
+    d = loop.controller.position_delay
+    n_x = A.shape[0]
+    # closed position loop with a delay line of d samples on the velocity command
+    size = n_x + d
+    Acl = np.zeros((size, size))
+    Bcl = np.zeros(size)
+    Acl[:n_x, :n_x] = Ap
+    if d:
+        Acl[:n_x, n_x + d - 1] = Bp
+        Acl[n_x, :n_x] = -Kv * C[0]
+        Bcl[n_x] = Kv
+        for j in range(1, d):
+            Acl[n_x + j, n_x + j - 1] = 1.0
+    else:
+        Acl[:n_x, :n_x] -= Kv * np.outer(Bp, C[0])
+        Bcl[:n_x] = Kv * Bp
+    Ccl = np.zeros(size)
+    Ccl[:n_x] = C[0]
+    Tp = loop.controller.position_period
+    n = int(round((duration or max(10.0 / max(Kv, 1e-3), 0.2)) / Tp))
+    return _step(Acl, Bcl, Ccl, Tp, n)
+
+
+@dataclass(frozen=True)
+class TimeTuningResult:
+    """Gains found by the time approach and every iteration (rise time, overshoot)."""
+
+    Kp: float
+    Kp_normalized: float
+    Ti: float
+    Kv: float
+    velocity: StepResponse
+    position: StepResponse
+    iterations: tuple[dict[str, Any], ...]
+    targets_met: bool
+    wall_time_s: float = 0.0
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``sicomat tune --method time --json`` object."""
+        return {"method": "time", "velocity": {"Kp": self.Kp_normalized, "Kp_si": self.Kp, "Ti": self.Ti},
+                "position": {"Kv": self.Kv},
+                "achieved": {"velocity_overshoot_percent": self.velocity.overshoot_percent,
+                             "velocity_rise_time": self.velocity.rise_time,
+                             "position_overshoot_percent": self.position.overshoot_percent,
+                             "position_rise_time": self.position.rise_time, "targets_met": self.targets_met},
+                "iterations": list(self.iterations), "notes": list(self.notes), "wall_time_s": self.wall_time_s}
+
+
+def _bisect(f, lo: float, hi: float, target: float, tol: float, record, max_iter: int = 40) -> float:
+    """Find x in [lo, hi] (log scale) with f(x) ≈ target, f increasing."""
+    for _ in range(max_iter):
+        mid = np.sqrt(lo * hi)
+        value = f(mid)
+        record(mid, value)
+        if abs(value - target) <= tol:
+            return mid
+        if value > target:
+            hi = mid
+        else:
+            lo = mid
+    return np.sqrt(lo * hi)
+
+
+def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuningResult:
+    """Run the three steps of the time approach automatically.
+
+    Raises
+    ------
+    AnalysisError
+        No gain reaches an overshoot target (e.g. the loop goes unstable before).
+    """
+    start = time.perf_counter()
+    t = targets or TimeTargets()
+    an = LoopAnalysis.of(loop)
+    m = loop.m_rigid
+    iterations: list[dict[str, Any]] = []
+    notes: list[str] = []
+
+    def v_overshoot(kp: float, ti: float) -> StepResponse:
+        return velocity_step(an, kp, ti)
+
+    # 1. Kp with Ti large, for ~10 % overshoot
+    ti = t.initial_Ti
+
+    def record_kp(kp, value):
+        r = v_overshoot(kp, ti)
+        iterations.append({"step": "velocity Kp", "Kp": kp / m, "Kp_si": kp, "Ti": ti,
+                           "overshoot_percent": value, "rise_time": r.rise_time})
+
+    lo, hi = m * 1.0, m * 10.0
+    while v_overshoot(hi, ti).overshoot_percent < t.velocity_overshoot_p and hi < m * 1e6:
+        lo, hi = hi, hi * 4
+    while v_overshoot(lo, ti).overshoot_percent > t.velocity_overshoot_p and lo > m * 1e-3:
+        lo, hi = lo / 4, lo
+    kp = _bisect(lambda k: v_overshoot(k, ti).overshoot_percent, lo, hi, t.velocity_overshoot_p, t.tolerance, record_kp)
+
+    # 2. Ti for an overshoot between 20 and 40 %: aim at the middle
+    low, high = t.velocity_overshoot_pi
+    goal = 0.5 * (low + high)
+
+    def record_ti(ti_, value):
+        r = v_overshoot(kp, ti_)
+        iterations.append({"step": "velocity Ti", "Kp": kp / m, "Kp_si": kp, "Ti": ti_,
+                           "overshoot_percent": value, "rise_time": r.rise_time})
+
+    # overshoot grows as Ti shrinks: bisect on 1/Ti
+    inv = _bisect(lambda x: v_overshoot(kp, 1.0 / x).overshoot_percent, 1.0 / t.initial_Ti,
+                  1.0 / (loop.controller.velocity_period * 2), goal, 0.5 * (high - low) - 1.0,
+                  lambda x, v: record_ti(1.0 / x, v))
+    ti = 1.0 / inv
+    vel = v_overshoot(kp, ti)
+
+    # 3. Kv for the desired position overshoot: the largest Kv that does not exceed it
+    def p_overshoot(kv: float) -> float:
+        return position_step(an, kp, ti, kv).overshoot_percent
+
+    def record_kv(kv, value):
+        r = position_step(an, kp, ti, kv)
+        iterations.append({"step": "position Kv", "Kv": kv, "overshoot_percent": value, "rise_time": r.rise_time})
+
+    kv_hi = kp / m
+    while p_overshoot(kv_hi) < t.position_overshoot and kv_hi < 1e4:
+        kv_hi *= 2
+    kv = _bisect(p_overshoot, kv_hi / 1e3, kv_hi, t.position_overshoot, 0.25, record_kv)
+    pos = position_step(an, kp, ti, kv)
+    met = (abs(vel.overshoot_percent - goal) <= 0.5 * (high - low) and pos.stable
+           and abs(pos.overshoot_percent - t.position_overshoot) <= max(0.5, t.tolerance))
+    if not vel.stable:
+        raise AnalysisError("the velocity loop found by the time approach is unstable")
+    return TimeTuningResult(Kp=kp, Kp_normalized=kp / m, Ti=ti, Kv=kv, velocity=vel, position=pos,
+                            iterations=tuple(iterations), targets_met=bool(met),
+                            wall_time_s=time.perf_counter() - start, notes=tuple(notes))
