@@ -13,7 +13,7 @@ from pydantic import Field, model_validator
 
 from .spec_base import (Inertia, Length, LinearDamping, LinearStiffness, Mass, Name, NonNegativeInertia,
                         NonNegativeMass, Spec, TorsionalDamping, fail, quantity)
-from .servo_spec import ControllerSpec, DriveSpec, SetpointSpec
+from .servo_spec import ControllerSpec, DriveSpec, InterpolatorSpec, SetpointSpec
 from .units import UNITS, parse_quantity
 
 __all__ = [
@@ -435,6 +435,7 @@ class Machine(Spec):
     name: str = ""
     description: str = ""
     axes: dict[Name, Axis] = Field(min_length=1)
+    interpolator: InterpolatorSpec = Field(default_factory=InterpolatorSpec)
 
     def axis(self, name: str | None = None) -> Axis:
         """The axis called ``name``, or the first axis."""

@@ -16,7 +16,7 @@ from .model import Machine
 __all__ = ["load_model", "machine_from_dict", "save_model", "dump_model", "parse_override",
            "with_overrides"]
 
-_UNION_TAGS = {"mechanics": {"lumped", "chain", "belt-rack"}, "trajectory": {"step", "ramp", "trapezoid"}}
+_UNION_TAGS = {"mechanics": {"lumped", "chain", "belt-rack"}, "trajectory": {"step", "ramp", "trapezoid", "s-curve"}}
 
 
 def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machine:

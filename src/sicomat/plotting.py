@@ -12,7 +12,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from .modal import ModalResult
 
-__all__ = ["plot_modes", "plot_timeseries", "save_figure"]
+__all__ = ["plot_modes", "plot_timeseries", "plot_path_run", "save_figure"]
 
 
 def _figure(**kwargs) -> "Figure":
@@ -78,6 +78,30 @@ def plot_timeseries(series, signals=None) -> "Figure":
     ax3.set_xlabel("time (s)")
     for ax in (ax1, ax2, ax3):
         ax.grid(True, alpha=0.3)
+    return fig
+
+
+def plot_path_run(run, magnification: float = 1.0) -> "Figure":
+    """The programmed and actual paths in the plane (the deviation magnified) and the contour error."""
+    import numpy as np
+
+    fig = _figure(figsize=(10, 4.5), layout="constrained")
+    ax1, ax2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.4]})
+    sp, act = run.setpoint, run.actual
+    shown = sp + magnification * (act - sp)
+    ax1.plot(sp[:, 0] * 1e3, sp[:, 1] * 1e3, label="programmed", linewidth=1.0)
+    ax1.plot(shown[:, 0] * 1e3, shown[:, 1] * 1e3, label=f"actual (deviation ×{magnification:g})", linewidth=0.9)
+    names = run.path.axis_names
+    ax1.set_xlabel(f"{names[0]} (mm)")
+    ax1.set_ylabel(f"{names[1]} (mm)")
+    ax1.set_aspect("equal", adjustable="datalim")
+    ax1.legend(fontsize=8)
+    ax1.grid(True, alpha=0.3)
+    ax2.plot(run.time, np.asarray(run.contour_error) * 1e6, linewidth=1.0)
+    ax2.set_xlabel("time (s)")
+    ax2.set_ylabel("contour error (µm)")
+    ax2.grid(True, alpha=0.3)
+    fig.suptitle(f"max contour error {run.max_contour_error * 1e6:.3g} µm", fontsize=10)
     return fig
 
 

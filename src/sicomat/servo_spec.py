@@ -17,7 +17,7 @@ from .spec_base import (Current, Fraction, Frequency, Gain, Inductance, Length, 
 from .units import UNITS, parse_quantity
 
 __all__ = ["DriveSpec", "FilterSpec", "ControllerSpec", "StepSetpoint", "RampSetpoint",
-           "TrapezoidSetpoint", "SetpointSpec"]
+           "TrapezoidSetpoint", "SCurveSetpoint", "SetpointSpec", "InterpolatorSpec"]
 
 
 def _either_unit(value: Any, kinds: tuple[str, ...]) -> float:
@@ -205,4 +205,28 @@ class TrapezoidSetpoint(Spec):
     start: NonNegativeTime = 0.0
 
 
-SetpointSpec = Annotated[Union[StepSetpoint, RampSetpoint, TrapezoidSetpoint], Field(discriminator="type")]
+class SCurveSetpoint(Spec):
+    """A jerk-limited (7-segment S-curve), time-optimal point-to-point move."""
+
+    type: Literal["s-curve"]
+    distance: Annotated[float, quantity("length")]
+    max_velocity: Annotated[float, quantity("velocity"), Field(gt=0)]
+    max_acceleration: Annotated[float, quantity("acceleration"), Field(gt=0)]
+    max_jerk: Annotated[float, quantity("jerk"), Field(gt=0)]
+    start: NonNegativeTime = 0.0
+
+
+SetpointSpec = Annotated[Union[StepSetpoint, RampSetpoint, TrapezoidSetpoint, SCurveSetpoint],
+                         Field(discriminator="type")]
+
+
+class InterpolatorSpec(Spec):
+    """The CNC's path interpolator (machine level): limits along the path for lines, arcs and G-code.
+
+    It runs at the position-loop period of the first axis it moves.
+    """
+
+    max_acceleration: Annotated[float, quantity("acceleration"), Field(gt=0)] = 2.0
+    max_jerk: Annotated[float, quantity("jerk"), Field(gt=0)] = 50.0
+    rapid_feed: Annotated[float, quantity("velocity"), Field(gt=0)] = 0.25
+    corner_tolerance: Annotated[float, quantity("angle"), Field(ge=0)] = 1e-3

@@ -1,4 +1,4 @@
-"""Single-axis setpoint profiles for now: step, ramp and trapezoidal velocity (issue 4 adds S-curves and paths)."""
+"""Single-axis setpoint profiles: step, ramp and trapezoidal velocity (S-curves: :mod:`sicomat.trajectory`)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .servo_spec import RampSetpoint, SetpointSpec, StepSetpoint, TrapezoidSetpoint
+from .servo_spec import RampSetpoint, SCurveSetpoint, SetpointSpec, StepSetpoint, TrapezoidSetpoint
 
 __all__ = ["Profile", "profile_from_spec", "step_profile", "ramp_profile", "trapezoid_profile"]
 
@@ -100,4 +100,8 @@ def profile_from_spec(spec: SetpointSpec) -> Profile:
         return ramp_profile(spec.velocity, spec.start)
     if isinstance(spec, TrapezoidSetpoint):
         return trapezoid_profile(spec.distance, spec.max_velocity, spec.max_acceleration, spec.start)
+    if isinstance(spec, SCurveSetpoint):
+        from .trajectory import scurve_profile
+
+        return scurve_profile(spec.distance, spec.max_velocity, spec.max_acceleration, spec.max_jerk, spec.start)
     raise TypeError(f"unsupported setpoint {spec!r}")  # pragma: no cover

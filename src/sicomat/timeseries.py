@@ -13,7 +13,7 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     import pandas
 
-__all__ = ["TimeSeries", "StepMetrics", "step_metrics"]
+__all__ = ["TimeSeries", "StepMetrics", "step_metrics", "write_frame_csv"]
 
 
 @dataclass(frozen=True)
@@ -105,23 +105,28 @@ class TimeSeries:
 
     def to_csv(self, path: str | os.PathLike) -> Path:
         """Write the signals as CSV (atomically: temporary file, then rename)."""
-        from .errors import OutputError
-
-        path = Path(path)
-        if not path.parent.is_dir():
-            raise OutputError(f"{path}: the folder {str(path.parent)!r} does not exist")
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        try:
-            self.to_pandas().to_csv(tmp, float_format="%.10g")
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return path
+        return write_frame_csv(self.to_pandas(), path)
 
     def plot(self, signals: list[str] | None = None):
         """Setpoint and position, following error, and effort against time; returns the Figure."""
         from .plotting import plot_timeseries
 
         return plot_timeseries(self, signals)
+
+
+def write_frame_csv(frame: "pandas.DataFrame", path: str | os.PathLike) -> Path:
+    """Write a DataFrame as CSV atomically (temporary file in the same folder, then rename)."""
+    from .errors import OutputError
+
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise OutputError(f"{path}: the folder {str(path.parent)!r} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        frame.to_csv(tmp, float_format="%.10g")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

@@ -348,10 +348,13 @@ def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: flo
     def cost_velocity(x, gain_criterion: bool) -> float:
         kp, ti = initial.Kp * np.exp(x[0]), initial.Ti * np.exp(x[1])
         q = ev.velocity(kp, ti)
-        cost = ((q.phase_margin - pmv) / pmv) ** 2 + (np.log(max(q.crossover, 1e-9) / wv)) ** 2
-        if gain_criterion:
-            cost += 10.0 * max(0.0, (gmin - q.gain_margin) / gmin) ** 2
-        return float(cost)
+        reach = np.log(max(q.crossover, 1e-9) / wv) ** 2
+        if not gain_criterion:  # phase margin and crossover as asked
+            return float(((q.phase_margin - pmv) / pmv) ** 2 + reach)
+        # gain-margin criterion: the margins become constraints, the crossover comes as close as it can
+        short_gm = max(0.0, (gmin - q.gain_margin) / gmin)
+        short_pm = max(0.0, (pmv - q.phase_margin) / pmv)
+        return float(100.0 * (short_gm ** 2 + short_pm ** 2) + reach + 0.1 * ((q.phase_margin - pmv) / pmv) ** 2)
 
     options = {"xatol": 1e-4, "fatol": 1e-8, "maxiter": 400}
     x = scipy.optimize.minimize(cost_velocity, [0.0, 0.0], args=(False,), method="Nelder-Mead", options=options).x
@@ -388,12 +391,16 @@ def _tune_position(ev: _Evaluator, base: np.ndarray, kv0: float, t: TuningTarget
             return np.log(max(q.crossover, 1e-9) / t.position_crossover)
         return t.position_phase_margin - q.phase_margin   # grows with Kv
 
-    lo, hi = np.log(kv0) - 3.0, np.log(kv0) + 3.0
-    try:
-        log_kv = scipy.optimize.brentq(mismatch, lo, hi, xtol=1e-6) if mismatch(lo) * mismatch(hi) < 0 else \
-            scipy.optimize.minimize_scalar(lambda v: mismatch(v) ** 2, bounds=(lo, hi), method="bounded").x
-    except ValueError:  # pragma: no cover - defensive
-        log_kv = np.log(kv0)
+    # scan upwards from a small gain: the first change of sign is the root (further up, the phase
+    # wraps and the mismatch jumps, which a bracketing solver would mistake for a root)
+    grid = np.log(kv0) + np.linspace(-5.0, 3.0, 41)
+    values = np.array([mismatch(g) for g in grid])
+    change = np.flatnonzero((values[:-1] < 0) & (values[1:] >= 0))
+    if change.size:
+        i = change[0]
+        log_kv = scipy.optimize.brentq(mismatch, grid[i], grid[i + 1], xtol=1e-7)
+    else:
+        log_kv = grid[int(np.argmin(np.abs(values)))]
     kv = float(np.exp(log_kv))
     while ev.position(base, kv).gain_margin < t.min_gain_margin and kv > 1e-6 * kv0:
         kv *= 0.95

@@ -67,6 +67,11 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                                           help="Velocity limit of --move (m/s)."),
              max_acceleration: Optional[float] = typer.Option(None, "--max-acceleration", metavar="M_S2",
                                                               help="Acceleration limit of --move (m/s^2)."),
+             gcode: Optional[Path] = typer.Option(None, "--gcode", metavar="FILE", dir_okay=False,
+                                                  help="Follow a G-code path (G00-G03, G17, G90/G91) with the "
+                                                       "axes it moves."),
+             feed: Optional[float] = typer.Option(None, "--feed", metavar="MM_PER_MIN",
+                                                  help="Override the G-code feed rate (mm/min)."),
              linear: bool = typer.Option(False, "--linear", help="Drop limits, quantizers and Coulomb friction."),
              out: Optional[Path] = typer.Option(None, "--out", help="Write every signal to this CSV file.",
                                                 dir_okay=False),
@@ -79,6 +84,29 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         from .simulate_cmd import choose_profile, simulate_payload
 
         machine = load(model, set_)
+        if gcode is not None:
+            from .simulate_cmd import simulate_gcode
+
+            run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear)
+            if out is not None:
+                from ..timeseries import write_frame_csv
+
+                write_frame_csv(run.to_pandas(), out)
+            if plot is not None:
+                from ..plotting import save_figure
+
+                save_figure(run.plot(), plot)
+            payload = run.to_dict()
+            summary = {key: max((a[key] for a in payload["axes"].values() if a[key] is not None), key=abs)
+                       for key in ("max_following_error", "rms_following_error", "final_error", "overshoot_percent")}
+            payload = {**summary, **payload}
+            if json_:
+                emit_json(payload)
+            else:
+                from .tables import print_path
+
+                print_path(payload)
+            return
         loop = build_servo_loop(machine, axis)
         profile, default_duration = choose_profile(machine.axes[loop.axis].trajectory, step, move,
                                                    max_velocity, max_acceleration)
@@ -221,6 +249,43 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             from .tables import print_tuning
 
             print_tuning(servo.axis, payload)
+
+
+@app.command()
+def circle(model: Path = ModelArgument,
+           radius: float = typer.Option(..., "--radius", metavar="MM", help="Circle radius (mm)."),
+           feed: float = typer.Option(..., "--feed", metavar="MM_PER_MIN", help="Feed rate (mm/min)."),
+           ccw: bool = typer.Option(False, "--ccw", help="Counter-clockwise (G03); default clockwise (G02)."),
+           feedforward: Optional[str] = typer.Option(None, "--feedforward", metavar="on|off",
+                                                     help="Override the model's velocity and acceleration "
+                                                          "feedforward on every axis."),
+           magnification: Optional[float] = typer.Option(None, "--magnification",
+                                                         help="Scale of the deviation in the polar plot."),
+           set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
+    """ISO 230-4 circle test (ballbar) on the X and Y axes: circular and radial deviation, reversal spikes,
+    servo mismatch."""
+    with guarded(model):
+        from ..errors import ModelError
+        from ..multiaxis import circle_test
+
+        if feedforward is not None and feedforward not in ("on", "off"):
+            raise ModelError("expected 'on' or 'off'", source="--feedforward", value=feedforward)
+        if not radius > 0:
+            raise ModelError("the radius must be > 0 mm", source="--radius", value=radius)
+        if not feed > 0:
+            raise ModelError("the feed must be > 0 mm/min", source="--feed", value=feed)
+        machine = load(model, set_)
+        test = circle_test(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw, feedforward=feedforward)
+        if plot is not None:
+            from ..plotting import save_figure
+
+            save_figure(test.plot(magnification), plot)
+        if json_:
+            emit_json(test.to_dict())
+        else:
+            from .tables import print_circle
+
+            print_circle(test.to_dict())
 
 
 _LOOP_NAMES = ("plant", "velocity-open", "velocity-closed", "position-open", "position-closed",

@@ -43,3 +43,35 @@ def simulate_payload(series) -> dict[str, Any]:
     return {"axis": series.info["axis"], **m.to_dict(), "samples": series.info["samples"],
             "step_s": series.info["step"], "duration_s": float(series.info["samples"] * series.info["step"]),
             "wall_time_s": series.info["wall_time_s"]}
+
+
+def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True):
+    """Parse a G-code file, interpolate it with the machine's interpolator, simulate the axes it moves."""
+    from pathlib import Path as _Path
+
+    from ..gcode import parse_gcode
+    from ..multiaxis import axis_for, simulate_path
+    from ..path import interpolate
+
+    if step_mm is not None or move_mm is not None:
+        raise ModelError("--gcode cannot be combined with --step or --move", source="options")
+    if feed_mm_min is not None and not feed_mm_min > 0:
+        raise ModelError("the feed must be > 0 mm/min", source="--feed", value=feed_mm_min)
+    try:
+        text = _Path(gcode_path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ModelError("no such G-code file", source=str(gcode_path)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"cannot read the G-code file ({exc})", source=str(gcode_path)) from None
+    ip = machine.interpolator
+    present = {name.upper() for name in machine.axes}
+    letters = "".join(letter for letter in "XYZ" if letter in present)
+    if len(letters) < 2:
+        raise ModelError("a G-code path needs at least two of the axes X, Y, Z in the machine", source="axes")
+    path = parse_gcode(text, source=str(gcode_path), rapid_feed=ip.rapid_feed, axes=letters)
+    first = machine.axes[axis_for(machine, path.axis_names[0])]
+    period = first.controller.position_period if first.controller is not None else 1e-3
+    feed = feed_mm_min * 1e-3 / 60.0 if feed_mm_min is not None else None
+    samples = interpolate(path, feed, ip.max_acceleration, ip.max_jerk, period,
+                          corner_tolerance=ip.corner_tolerance)
+    return simulate_path(machine, samples, nonlinear=nonlinear)

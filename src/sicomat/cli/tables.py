@@ -173,3 +173,39 @@ def print_tuning(axis: str, payload: dict[str, Any]) -> None:
     if "equivalent_delay_s" in payload:
         console.print(f"  equivalent delay of the rigid tuning: {payload['equivalent_delay_s'] * 1e3:.3f} ms")
     console.print(f"  tuning time: {payload['wall_time_s'] * 1e3:.1f} ms")
+
+
+def print_circle(payload: dict[str, Any]) -> None:
+    """Print the figures of ``sicomat circle``."""
+    from rich.console import Console
+    from rich.table import Table
+
+    direction = "CW" if payload["clockwise"] else "CCW"
+    table = Table(title=f"circle test R = {payload['radius'] * 1e3:g} mm, {direction}, "
+                        f"F = {payload['feed'] * 6e4:g} mm/min, feedforward {payload['feedforward']}",
+                  title_justify="left")
+    table.add_column("figure")
+    table.add_column("value", justify="right")
+    for key in ("circular_deviation", "radial_deviation_min", "radial_deviation_max", "mean_radial_deviation",
+                "max_contour_error", "servo_mismatch"):
+        table.add_row(key, f"{payload[key] * 1e6:.3f} µm")
+    table.add_row("servo_mismatch_angle", f"{payload['servo_mismatch_angle_deg']:.1f}°")
+    for spike in payload["reversal_spikes"]:
+        table.add_row(f"reversal spike {spike['quadrant_deg']:g}° ({spike['axis']})", f"{spike['height'] * 1e6:.3f} µm")
+    Console(highlight=False).print(table)
+
+
+def print_path(payload: dict[str, Any]) -> None:
+    """Print the figures of ``sicomat simulate --gcode``."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"path of {payload['path_length'] * 1e3:.4g} mm in {payload['duration_s']:.3g} s: "
+                        f"max contour error {payload['max_contour_error'] * 1e6:.3g} µm", title_justify="left")
+    table.add_column("axis")
+    for col in ("max following error (µm)", "rms (µm)", "final (µm)"):
+        table.add_column(col, justify="right")
+    for name, axis in payload["axes"].items():
+        table.add_row(f"{name} ({axis['machine_axis']})", f"{axis['max_following_error'] * 1e6:.4g}",
+                      f"{axis['rms_following_error'] * 1e6:.4g}", f"{axis['final_error'] * 1e6:.4g}")
+    Console(highlight=False).print(table)
