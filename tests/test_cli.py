@@ -127,3 +127,78 @@ def test_installed_program_exit_status_and_no_traceback(tmp_path):
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert "not a valid TOML file" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_simulate_json_contract(tmp_path):
+    out = tmp_path / "run.csv"
+    result = run("simulate", P5M4S, "--move", "5", "--duration", "0.3", "--json", "--out", str(out))
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    for key in ("max_following_error", "rms_following_error", "final_error", "overshoot_percent", "samples",
+                "wall_time_s"):
+        assert key in payload
+    assert payload["samples"] == round(0.3 / 125e-6)
+    assert payload["max_following_error"] >= payload["rms_following_error"] > 0
+    header = out.read_text().splitlines()[0].split(",")
+    assert "following_error" in header and "load.x" in header and "friction.motor" in header
+    assert [p.name for p in tmp_path.iterdir()] == ["run.csv"]
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--set", "axes.X.controller.position_period=0.3 ms"], "whole multiple"),
+    (["--set", "axes.X.controller.Kv=-2"], "axes.X.controller.Kv"),
+    (["--set", "axes.X.controller.position_delay=500", "--duration", "0.2"], "not shorter than the run"),
+    (["--set", "axes.X.mechanics.sensors.scale.body=ghost"], "unknown body 'ghost'"),
+    (["--set", "axes.X.controller.velocity_sensor=nowhere"], "unknown sensor 'nowhere'"),
+    (["--linear", "--set", "axes.X.controller.Kp_normalized=20000"], "diverged at t ="),
+    (["--step", "1", "--move", "2"], "either --step or --move"),
+])
+def test_simulate_bad_input_exit_2(args, needle):
+    result = run("simulate", P5M4S, *args)
+    assert result.exit_code == 2, result.output
+    assert needle in result.stderr and "Traceback" not in result.output
+
+
+def test_simulate_model_without_actuator(tmp_path):
+    model = tmp_path / "m.toml"
+    model.write_text('[axes.X.mechanics]\ntype = "lumped"\n[axes.X.mechanics.bodies.a]\nmass = 1\n'
+                     '[axes.X.mechanics.frictions.f]\nbetween = ["a", "ground"]\nviscous = 1\n'
+                     '[axes.X.mechanics.sensors.s]\nbody = "a"\n'
+                     '[axes.X.drive]\nforce_constant = 1\ntime_constant = 0.001\n'
+                     '[axes.X.controller]\nposition_sensor = "s"\nKv = 1\nKp = 1\nTi = 1\n')
+    result = run("simulate", str(model), "--step", "1")
+    assert result.exit_code == 2 and "no actuator" in result.stderr
+
+
+def test_tune_json_contract_and_written_model(tmp_path):
+    tuned = tmp_path / "tuned.toml"
+    result = run("tune", P5M4S, "--velocity-crossover", "125.6", "--velocity-phase-margin", "45",
+                 "--position-phase-margin", "80", "--write", str(tuned), "--json")
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    assert set(payload["velocity"]) >= {"Kp", "Kp_si", "Ti"} and "Kv" in payload["position"]
+    for key in ("velocity_phase_margin_deg", "velocity_crossover_rad_s", "position_phase_margin_deg",
+                "position_crossover_rad_s", "gain_margin_db", "targets_met", "notch"):
+        assert key in payload["achieved"]
+    assert payload["equivalent_delay_s"] > 0 and payload["wall_time_s"] > 0
+    assert set(payload["initial"]) == {"velocity", "position"}
+    from sicomat import load_model
+
+    written = load_model(tuned).axes["X"].controller
+    assert written.Kp_normalized == pytest.approx(payload["velocity"]["Kp"], rel=1e-12)
+    assert written.Kv == pytest.approx(payload["position"]["Kv"], rel=1e-12)
+
+
+def test_margins_and_bode_json(tmp_path):
+    result = run("margins", P5M4S, "--json")
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    assert payload["velocity"]["phase_margin_deg"] is not None and payload["position"]["gain_margin_db"] > 0
+    result = run("bode", P5M4S, "--loop", "position-closed", "--json", "--points", "50")
+    assert result.exit_code == 0, result.output
+    frf = json.loads(result.stdout)
+    assert frf["loop"] == "position-closed" and len(frf["omega"]) == len(frf["magnitude_db"])
+    result = run("bode", P5M4S, "--loop", "nonsense")
+    assert result.exit_code == 2 and "unknown loop" in result.stderr
+    result = run("tune", P5M4S, "--velocity-crossover", "1e9")
+    assert result.exit_code == 2 and "Nyquist" in result.stderr

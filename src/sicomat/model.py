@@ -304,9 +304,10 @@ def _parse_link(link: Any, kinds: dict[str, str], fields: dict[str, dict[str, st
 
 
 def _parse_resolution(sensor: Any, kinds: dict[str, str], where: str) -> Any:
-    if not isinstance(sensor, dict) or sensor.get("resolution") is None or sensor.get("body") not in kinds:
+    if not isinstance(sensor, dict) or sensor.get("resolution") is None:
         return sensor
-    unit = "length" if kinds[sensor["body"]] == "translational" else "angle"
+    # an unknown body is reported by the topology check; parse the resolution as a length then
+    unit = "angle" if kinds.get(sensor.get("body")) == "rotational" else "length"
     try:
         return {**sensor, "resolution": parse_quantity(sensor["resolution"], UNITS[unit])}
     except ValueError as exc:
@@ -411,6 +412,9 @@ class Axis(Spec):
             if self.drive.actuator is not None and self.drive.actuator not in actuators:
                 raise fail("unknown actuator {value}; expected one of {known}", "drive.actuator",
                            self.drive.actuator, known=", ".join(actuators) or "(none: add one to the mechanics)")
+            if not actuators:
+                raise fail("the mechanics has no actuator for the drive to command; add one under "
+                           "mechanics.actuators", "drive", None)
             if self.drive.actuator is None and len(actuators) != 1:
                 raise fail("the mechanics has {count} actuators; name the driven one in 'actuator'",
                            "drive.actuator", None, count=len(actuators))

@@ -104,7 +104,7 @@ class BatchResult:
         variant when ``on_divergence="flag"``).
     record_names : tuple of str
     final_states : ndarray, shape (n_variants, nx)
-        Continuous state at ``t_{n_steps}`` (at the divergence for a diverged variant).
+        Continuous state at ``t_{n_steps}`` (zero for a diverged variant).
     diverged_step : ndarray of int, shape (n_variants,)
         Base step at which a variant diverged, -1 for a variant that did not.
     """
@@ -918,6 +918,23 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
         The state diverged; the message gives the simulated time.
     ModelError
         The program is inconsistent (slot indices, shapes, more than 6 friction links).
+
+    Notes
+    -----
+    Base step k follows :mod:`sicomat.simulate.program`: (1) ``y = C x_k + D u_{k-1}`` (the input
+    still held from the previous step, zero at k = 0) and the acting friction forces (with that
+    same input) are written to their slots; (2) the due ops run in list order; (3) ``u_k`` is
+    latched, and a stuck link whose holding force now exceeds its static limit breaks away;
+    (4) records; (5) exact advance to ``t_{k+1}``. In (5) each friction link is stuck (its
+    constraint force holds it) or slides with ``f = -coulomb * d`` (``d`` its direction of
+    motion); a sliding link whose velocity reverses, or a stuck link whose force exceeds
+    ``static``, is an event, located by bisection over binary fractions of h. At an event, the
+    links whose velocity reached zero are projected onto ``v = 0`` and stick if the holding force
+    is within ``static``; otherwise they slide against that force. Links with ``coulomb = static
+    = 0`` are ignored.
+
+    Divergence is checked on the continuous state after every step and on the recorded slots
+    (NaN); block states are not checked themselves (they act through the slots).
     """
     _check_run_args(n_steps, levels, max_events)
     n_steps = int(n_steps)
@@ -1031,6 +1048,7 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
         if on_divergence == "raise":
             raise _diverged(int(status[v]), int(k_bad[v]), step, int(v))
         rec[v, -(-int(k_bad[v]) // every):] = 0.0
+        x_final[v] = 0.0
     names = tuple(programs[0].slot_names[i] for i in s["rec_slots"])
     return BatchResult(time=np.arange(n_rec) * every * step, records=rec, record_names=names,
                        final_states=x_final, diverged_step=diverged_step)

@@ -1,0 +1,512 @@
+"""What a reduction cost: frequency errors on a pole-aware grid, and the :class:`ReductionResult`.
+
+Frequency responses are evaluated from the additive split ``G = rigid + flexible`` of
+:func:`~sicomat.reduction.modal.spectral_split`: the rigid block (a few states) by batched small
+solves, the flexible block from its eigen-decomposition (one vectorised product for all
+frequencies), or, when its eigenvectors are ill-conditioned, by triangular solves on its complex
+Schur form. The grid is log-spaced and also holds every pole's damped and natural frequency (and
+its half-power points) of both models, so no lightly damped peak falls between two points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING, Any, Sequence
+
+import numpy as np
+import scipy.linalg
+
+from ..errors import ModelError
+from ..plant import Plant
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+    from ..mechanics import Mechanics
+    from ..model import LumpedSpec, Machine
+
+__all__ = ["ErrorMetrics", "ReductionResult", "error_metrics", "frequency_grid", "frequency_response",
+           "natural_frequencies_hz", "check_band"]
+
+_TWO_PI = 2.0 * np.pi
+
+
+def check_band(band_hz: Sequence[float] | None) -> tuple[float, float] | None:
+    """Validate a band of interest ``(low_hz, high_hz)``: ``0 ≤ low < high``, finite."""
+    if band_hz is None:
+        return None
+    try:
+        low, high = (float(v) for v in band_hz)
+    except (TypeError, ValueError):
+        raise ModelError("expected a band (low_hz, high_hz) of two numbers", path="band_hz",
+                         value=band_hz) from None
+    if not (np.isfinite(low) and np.isfinite(high)):
+        raise ModelError("expected finite band limits in Hz", path="band_hz", value=(low, high))
+    if low < 0:
+        raise ModelError("expected a band starting at 0 Hz or above", path="band_hz", value=(low, high))
+    if low >= high:
+        raise ModelError("expected a band with low < high (Hz)", path="band_hz", value=(low, high))
+    return (low, high)
+
+
+# --------------------------------------------------------------------------- frequency responses
+class _Response:
+    """Fast frequency response of a plant from its rigid/flexible split."""
+
+    def __init__(self, plant: Plant, rigid_tol: float) -> None:
+        from .modal import spectral_split
+
+        split = spectral_split(plant, rigid_tol=rigid_tol)
+        self.split = split
+        r, f = split.rigid, split.flexible
+        self.poles = np.concatenate([r.poles(), f.poles()])
+        self.n_rigid = r.n
+        self._modal = None
+        self._schur = None
+        if f.n:
+            try:
+                lam, V = np.linalg.eig(f.A)
+                W = np.linalg.inv(V)
+                kappa = np.linalg.norm(V) * np.linalg.norm(W) / f.n
+            except np.linalg.LinAlgError:
+                kappa = np.inf
+            if np.isfinite(kappa) and kappa < 1e8:
+                self._modal = (lam, f.C @ V, W @ f.B)
+            else:  # ill-conditioned eigenvectors: complex Schur form, triangular solves
+                Tc, Zc = scipy.linalg.rsf2csf(f.A, np.eye(f.n))
+                self._schur = (Tc, Zc.conj().T @ f.B, f.C @ Zc)
+
+    def rigid(self, omega: np.ndarray) -> np.ndarray:
+        """Response of the rigid block ``(n_ω, ny, nu)`` (ω > 0)."""
+        r = self.split.rigid
+        ny, nu = self.split.D.shape
+        if r.n == 0:
+            return np.zeros((len(omega), ny, nu), complex)
+        s = 1j * np.asarray(omega, float)
+        M = s[:, None, None] * np.eye(r.n)[None] - r.A[None]
+        X = np.linalg.solve(M, np.broadcast_to(r.B.astype(complex), (len(s), r.n, nu)))
+        return r.C[None] @ X
+
+    def flexible(self, omega: np.ndarray) -> np.ndarray:
+        """Response of the flexible block plus the feedthrough ``(n_ω, ny, nu)``."""
+        s = 1j * np.asarray(omega, float)
+        out = np.broadcast_to(self.split.D.astype(complex), (len(s), *self.split.D.shape)).copy()
+        if self._modal is not None:
+            lam, CV, WB = self._modal
+            H = 1.0 / (s[:, None] - lam[None, :])
+            out += np.einsum("ik,wk,kj->wij", CV, H, WB, optimize=True)
+        elif self._schur is not None:
+            Tc, Bc, Cc = self._schur
+            eye = np.eye(Tc.shape[0])
+            for k, sk in enumerate(s):
+                out[k] += Cc @ scipy.linalg.solve_triangular(sk * eye - Tc, Bc, check_finite=False)
+        return out
+
+    def __call__(self, omega: np.ndarray) -> np.ndarray:
+        return self.rigid(omega) + self.flexible(omega)
+
+
+def frequency_response(plant: Plant, omega: np.ndarray, *, rigid_tol: float | None = None) -> np.ndarray:
+    """``G(jω)`` for many frequencies at once, shape ``(len(omega), ny, nu)``.
+
+    Parameters
+    ----------
+    plant : Plant
+        Any continuous plant.
+    omega : array_like
+        Angular frequencies (rad/s), ``> 0`` when the plant has poles at 0.
+    rigid_tol : float, optional
+        Relative tolerance for poles at 0 (default :data:`~sicomat.reduction.modal.RIGID_TOL`).
+
+    Examples
+    --------
+    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.mechanics import build_mechanics
+    >>> plant = build_mechanics(ChainSpec(type="chain", masses=[2.0])).state_space()
+    >>> complex(frequency_response(plant, [10.0])[0, 0, 0])  # 1 / (m (j10)²)
+    (-0.005+0j)
+    """
+    from .modal import RIGID_TOL
+
+    return _Response(plant, RIGID_TOL if rigid_tol is None else rigid_tol)(np.atleast_1d(omega))
+
+
+def natural_frequencies_hz(poles: np.ndarray, rigid_states: int = 0) -> np.ndarray:
+    """Natural frequencies ``|λ|/2π`` (Hz), ascending: one 0 per rigid-body mode (two rigid states),
+    then one per complex pole pair and one per real pole of the other ``poles``.
+
+    Examples
+    --------
+    >>> natural_frequencies_hz(np.array([-1 + 2j * np.pi, -1 - 2j * np.pi]), rigid_states=2).round(4).tolist()
+    [0.0, 1.0253]
+    """
+    poles = np.asarray(poles, complex)
+    scale = max(float(np.max(np.abs(poles))) if poles.size else 0.0, 1.0)
+    keep = poles.imag >= -1e-12 * scale  # one pole of each conjugate pair
+    values = np.concatenate([np.zeros((rigid_states + 1) // 2), np.abs(poles[keep]) / _TWO_PI])
+    return np.sort(values)
+
+
+def frequency_grid(*poles: np.ndarray, band_hz: tuple[float, float] | None = None,
+                   points_per_decade: int = 40) -> np.ndarray:
+    """A log-spaced grid (rad/s) that also holds each pole's damped and natural frequencies.
+
+    For a pole ``λ = σ + jω_d`` the grid gets ``ω_d``, ``|λ|`` and the half-power points
+    ``ω_d ± |σ|``: a lightly damped peak (width ``2|σ|``) cannot fall between two points. The
+    log-spaced part spans from a hundredth of the slowest non-zero pole to ten times the fastest,
+    and covers the band if one is given.
+    """
+    allp = np.concatenate([np.asarray(p, complex).ravel() for p in poles]) if poles else np.zeros(0, complex)
+    mags = np.abs(allp[allp != 0])
+    lo = float(mags.min()) / 100.0 if mags.size else 0.1
+    hi = float(mags.max()) * 10.0 if mags.size else 10.0
+    if band_hz is not None:
+        hi = max(hi, _TWO_PI * band_hz[1] * 1.01)
+        lo = min(lo, _TWO_PI * (band_hz[0] if band_hz[0] > 0 else band_hz[1] * 1e-3))
+    count = int(np.ceil(np.log10(hi / lo) * points_per_decade)) + 1
+    parts = [np.logspace(np.log10(lo), np.log10(hi), count)]
+    osc = allp[np.abs(allp.imag) > 0]
+    if osc.size:
+        wd, sigma = np.abs(osc.imag), np.abs(osc.real)
+        parts += [wd, np.abs(osc), wd + sigma, np.maximum(wd - sigma, 0.0)]
+    real = allp[(allp.imag == 0) & (allp != 0)]
+    if real.size:
+        parts.append(np.abs(real))
+    if band_hz is not None:
+        parts.append(_TWO_PI * np.array([b for b in band_hz if b > 0]))
+    omega = np.unique(np.concatenate(parts))
+    return omega[omega > 0]
+
+
+# --------------------------------------------------------------------------- error metrics
+def _gain(G: np.ndarray) -> np.ndarray:
+    """Largest singular value of each ``(ny, nu)`` matrix of a response."""
+    if G.shape[1] == 1 or G.shape[2] == 1:
+        return np.sqrt(np.sum(np.abs(G) ** 2, axis=(1, 2)))
+    return np.linalg.norm(G, ord=2, axis=(1, 2))
+
+
+def _ratio(num: float, den: float) -> float | None:
+    return float(num / den) if den > 0 and np.isfinite(num / den) else None
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorMetrics:
+    """Frequency-domain cost of a reduction (result of :func:`error_metrics`).
+
+    Gains are largest singular values of the ``(ny, nu)`` response matrices, in the plant's units
+    (e.g. m/N). The error system is ``E = G − G_r``; rigid-body parts (poles at 0) that the method
+    keeps exactly cancel in it.
+
+    Attributes
+    ----------
+    omega : ndarray
+        The pole-aware grid (rad/s), see :func:`frequency_grid`.
+    full_response, reduced_response : ndarray
+        ``G(jω)`` and ``G_r(jω)``, shape ``(n_ω, ny, nu)``.
+    error_gain : ndarray
+        ``σ̄(E(jω))`` on the grid.
+    hinf_error : float
+        ``max σ̄(E(jω))`` on the grid: the H∞ norm of the error system.
+    hinf_frequency_hz : float
+        Where that maximum is.
+    hinf_relative_error : float or None
+        ``hinf_error`` over the H∞ norm of the full model's flexible part (rigid-body part removed,
+        see :func:`~sicomat.reduction.modal.spectral_split`).
+    dc_gain_error, dc_gain_relative_error : float, float or None
+        ``σ̄(G_f(0) − G_{r,f}(0))`` of the flexible parts (the whole plants when there is no rigid
+        mode), absolute and relative to ``σ̄(G_f(0))``.
+    band_hz, band_max_error, band_rms_error, band_max_relative_error
+        Over the band of interest (if one is given): the largest error, the RMS of ``σ̄(E)`` over
+        log-spaced frequencies, and the largest error over the full model's largest gain there.
+    frequencies_hz_full, frequencies_hz_reduced : ndarray
+        Natural frequencies from the poles (:func:`natural_frequencies_hz`).
+    frequency_pairs : tuple of (float, float)
+        Each retained frequency of the reduced model with the full model's frequency it matches.
+    """
+
+    omega: np.ndarray
+    full_response: np.ndarray
+    reduced_response: np.ndarray
+    error_gain: np.ndarray
+    hinf_error: float
+    hinf_frequency_hz: float
+    hinf_relative_error: float | None
+    dc_gain_error: float
+    dc_gain_relative_error: float | None
+    band_hz: tuple[float, float] | None
+    band_max_error: float | None
+    band_rms_error: float | None
+    band_max_relative_error: float | None
+    frequencies_hz_full: np.ndarray
+    frequencies_hz_reduced: np.ndarray
+    frequency_pairs: tuple[tuple[float, float], ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (no arrays of responses)."""
+        return {
+            "hinf_error": self.hinf_error, "hinf_frequency_hz": self.hinf_frequency_hz,
+            "hinf_relative_error": self.hinf_relative_error,
+            "dc_gain_error": self.dc_gain_error, "dc_gain_relative_error": self.dc_gain_relative_error,
+            "band_hz": list(self.band_hz) if self.band_hz else None,
+            "band_max_error": self.band_max_error, "band_rms_error": self.band_rms_error,
+            "band_max_relative_error": self.band_max_relative_error,
+            "frequencies_hz": [float(f) for f in self.frequencies_hz_reduced],
+            "frequencies_hz_full": [float(f) for f in self.frequencies_hz_full],
+            "retained_frequencies": [{"reduced_hz": r, "full_hz": f,
+                                      "relative_error": (abs(r - f) / f) if f > 0 else abs(r - f)}
+                                     for r, f in self.frequency_pairs],
+        }
+
+
+def _pairs(reduced: np.ndarray, full: np.ndarray) -> tuple[tuple[float, float], ...]:
+    if reduced.size == 0 or full.size == 0:
+        return ()
+    from scipy.optimize import linear_sum_assignment
+
+    eps = 1e-9 * max(float(full.max()), 1e-300)
+    cost = np.abs(np.log((reduced[:, None] + eps) / (full[None, :] + eps)))
+    rows, cols = linear_sum_assignment(cost)
+    return tuple(sorted((float(reduced[i]), float(full[j])) for i, j in zip(rows, cols)))
+
+
+def error_metrics(full: Plant, reduced: Plant, *, band_hz: tuple[float, float] | None = None,
+                  rigid_tol: float | None = None, points_per_decade: int = 40) -> ErrorMetrics:
+    """The frequency errors of a reduced model against the full one.
+
+    Parameters
+    ----------
+    full, reduced : Plant
+        Same inputs and outputs.
+    band_hz : (float, float), optional
+        Band of interest (Hz) for the band errors.
+    rigid_tol : float, optional
+        Relative tolerance for poles at 0 (default :data:`~sicomat.reduction.modal.RIGID_TOL`).
+    points_per_decade : int, optional
+        Density of the log-spaced part of the grid (the pole frequencies are always added).
+
+    Returns
+    -------
+    ErrorMetrics
+
+    Examples
+    --------
+    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.mechanics import build_mechanics
+    >>> plant = build_mechanics(ChainSpec(type="chain", masses=[1, 1], stiffnesses=[100],
+    ...                                   dampings=[0.1])).state_space()
+    >>> error_metrics(plant, plant).hinf_error
+    0.0
+    """
+    from .modal import RIGID_TOL
+
+    band_hz = check_band(band_hz)
+    if full.inputs != reduced.inputs or full.outputs != reduced.outputs:
+        raise ModelError("the reduced plant must have the full plant's inputs and outputs",
+                         value={"inputs": reduced.inputs, "outputs": reduced.outputs})
+    tol = RIGID_TOL if rigid_tol is None else rigid_tol
+    rf, rr = _Response(full, tol), _Response(reduced, tol)
+    omega = frequency_grid(rf.poles, rr.poles, band_hz=band_hz, points_per_decade=points_per_decade)
+    same_rigid = (rf.split.rigid.n == rr.split.rigid.n and rf.split.rigid.n > 0
+                  and np.allclose(rf.rigid(omega[:3]), rr.rigid(omega[:3]), rtol=1e-10, atol=0.0))
+    Gf_rigid, Gr_rigid = rf.rigid(omega), rr.rigid(omega)
+    Gf_flex, Gr_flex = rf.flexible(omega), rr.flexible(omega)
+    G, Gr = Gf_rigid + Gf_flex, Gr_rigid + Gr_flex
+    E = (Gf_flex - Gr_flex) if same_rigid else (Gf_rigid - Gr_rigid) + (Gf_flex - Gr_flex)
+    err = _gain(E)
+    k = int(np.argmax(err))
+    dc_full, dc_red = rf.split.dc_gain(), rr.split.dc_gain()
+    dc_err = float(np.linalg.norm(dc_full - dc_red, 2)) if dc_full.size else 0.0
+    dc_ref = float(np.linalg.norm(dc_full, 2)) if dc_full.size else 0.0
+    flex_peak = max(float(np.max(_gain(Gf_flex))), dc_ref)
+
+    band_max = band_rms = band_rel = None
+    if band_hz is not None:
+        lo_w, hi_w = _TWO_PI * band_hz[0], _TWO_PI * band_hz[1]
+        start = lo_w if lo_w > 0 else hi_w * 1e-3
+        even = np.logspace(np.log10(start), np.log10(hi_w), 200)
+        inside = omega[(omega >= lo_w) & (omega <= hi_w)]
+        pts = np.unique(np.concatenate([even, inside]))
+
+        def e_at(w):
+            ef = rf.flexible(w) - rr.flexible(w)
+            return _gain(ef if same_rigid else ef + rf.rigid(w) - rr.rigid(w))
+
+        e_pts = e_at(pts)
+        band_max = float(e_pts.max())
+        if lo_w == 0.0:
+            band_max = max(band_max, dc_err)
+        band_rms = float(np.sqrt(np.mean(e_at(even) ** 2)))
+        band_rel = _ratio(band_max, float(np.max(_gain(rf(pts)))))
+
+    f_full = natural_frequencies_hz(rf.split.flexible.poles(), rf.split.rigid.n)
+    f_red = natural_frequencies_hz(rr.split.flexible.poles(), rr.split.rigid.n)
+    return ErrorMetrics(
+        omega=omega, full_response=G, reduced_response=Gr, error_gain=err,
+        hinf_error=float(err[k]), hinf_frequency_hz=float(omega[k] / _TWO_PI),
+        hinf_relative_error=_ratio(float(err[k]), flex_peak),
+        dc_gain_error=dc_err, dc_gain_relative_error=_ratio(dc_err, dc_ref) if dc_ref > 0 else None,
+        band_hz=band_hz, band_max_error=band_max, band_rms_error=band_rms, band_max_relative_error=band_rel,
+        frequencies_hz_full=f_full, frequencies_hz_reduced=f_red, frequency_pairs=_pairs(f_red, f_full))
+
+
+# --------------------------------------------------------------------------- result
+@dataclass(frozen=True, eq=False)
+class ReductionResult:
+    """A reduced model and what it cost.
+
+    Attributes
+    ----------
+    method : str
+        ``"modal"``, ``"balanced"`` or ``"physical"``.
+    variant : str
+        The algorithm: ``"truncation-dc-matched"`` (modal), ``"square-root"``,
+        ``"singular-perturbation"``, ``"frequency-limited"``, ``"schur"``, ``"hankel-norm"``
+        (balanced), ``"regrouping"`` (physical).
+    full, reduced : Plant
+        The full and the reduced plant (same inputs and outputs).
+    hankel_singular_values : ndarray or None
+        Of the stable part, descending (balanced methods).
+    error_bound : float or None
+        A-priori bound on the H∞ norm of the error (``2 Σ`` of the discarded Hankel singular
+        values for balanced truncation and its singular-perturbation variant, ``Σ`` for the
+        Hankel-norm approximation); ``None`` when the method has none.
+    band_hz : (float, float) or None
+        Band of interest (Hz).
+    kept : tuple of str
+        The kept degrees of freedom (physical method).
+    merged_into : dict
+        Each removed body and the kept body that carries most of it (or ``"ground"``).
+    mechanics, spec : Mechanics, LumpedSpec or None
+        The reduced lumped model (physical method).
+    machine : Machine or None
+        The machine with the reduced axis, ready for :func:`sicomat.modelfile.save_model`
+        (physical method through :func:`~sicomat.reduction.cli_support.reduce_command`).
+    notes : tuple of str
+        Things the user should know (a complex pair not split, a friction dropped, ...).
+
+    The error figures (:attr:`metrics`, :attr:`hinf_error`, ...) are computed on first access.
+    """
+
+    method: str
+    variant: str
+    full: Plant
+    reduced: Plant
+    hankel_singular_values: np.ndarray | None = None
+    error_bound: float | None = None
+    band_hz: tuple[float, float] | None = None
+    kept: tuple[str, ...] = ()
+    mechanics: "Mechanics | None" = None
+    spec: "LumpedSpec | None" = None
+    machine: "Machine | None" = None
+    notes: tuple[str, ...] = ()
+    merged_into: dict[str, str] = field(default_factory=dict)
+    rigid_tol: float | None = field(default=None, repr=False)
+
+    @property
+    def order_before(self) -> int:
+        """Number of states of the full model."""
+        return self.full.n_states
+
+    @property
+    def order_after(self) -> int:
+        """Number of states of the reduced model."""
+        return self.reduced.n_states
+
+    @cached_property
+    def metrics(self) -> ErrorMetrics:
+        """Frequency errors on the pole-aware grid (computed once, on first access)."""
+        return error_metrics(self.full, self.reduced, band_hz=self.band_hz, rigid_tol=self.rigid_tol)
+
+    @property
+    def hinf_error(self) -> float:
+        """H∞ norm of the error system on the pole-aware grid (plant units)."""
+        return self.metrics.hinf_error
+
+    @property
+    def dc_gain_error(self) -> float:
+        """Static-gain error of the flexible part (plant units)."""
+        return self.metrics.dc_gain_error
+
+    @property
+    def band_max_error(self) -> float | None:
+        """Largest error over the band of interest."""
+        return self.metrics.band_max_error
+
+    @property
+    def band_rms_error(self) -> float | None:
+        """RMS error over the band of interest (log-spaced frequencies)."""
+        return self.metrics.band_rms_error
+
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        """Natural frequencies of the reduced model (Hz)."""
+        return self.metrics.frequencies_hz_reduced
+
+    @property
+    def frequencies_hz_full(self) -> np.ndarray:
+        """Natural frequencies of the full model (Hz)."""
+        return self.metrics.frequencies_hz_full
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (the ``sicomat reduce --json`` contract)."""
+        hsv = self.hankel_singular_values
+        out = {
+            "method": self.method, "variant": self.variant,
+            "order_before": self.order_before, "order_after": self.order_after,
+            "inputs": list(self.full.inputs), "outputs": list(self.full.outputs),
+        }
+        out.update(self.metrics.to_dict())
+        out.update({
+            "error_bound": self.error_bound,
+            "hankel_singular_values": None if hsv is None else [float(v) for v in hsv],
+            "kept": list(self.kept) if self.kept else None,
+            "merged_into": dict(self.merged_into) if self.merged_into else None,
+            "notes": list(self.notes),
+        })
+        if self.spec is not None:
+            out["reduced_model"] = self.spec.model_dump(mode="json", exclude_none=True)
+        return out
+
+    def plot(self, *, max_channels: int = 4) -> "Figure":
+        """Bode magnitude and phase of the full (solid) and reduced (dashed) models on one figure.
+
+        One line pair per input/output channel (at most ``max_channels``); the band of interest is
+        shaded. Returns the matplotlib ``Figure``.
+        """
+        return _plot(self, max_channels=max_channels)
+
+
+def _plot(result: ReductionResult, max_channels: int) -> "Figure":
+    from matplotlib.figure import Figure
+
+    m = result.metrics
+    order = np.argsort(m.omega)
+    f = m.omega[order] / _TWO_PI
+    fig = Figure(figsize=(8, 6), layout="constrained")
+    ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
+    channels = [(i, j) for i in range(len(result.full.outputs)) for j in range(len(result.full.inputs))]
+    colors = [f"C{k}" for k in range(10)]
+    for k, (i, j) in enumerate(channels[:max_channels]):
+        label = f"{result.full.inputs[j]} → {result.full.outputs[i]}"
+        for G, style, tag in ((m.full_response, "-", "full"), (m.reduced_response, "--", "reduced")):
+            g = G[order, i, j]
+            mag = 20 * np.log10(np.maximum(np.abs(g), 1e-300))
+            ax_mag.semilogx(f, mag, style, color=colors[k % 10], linewidth=1.0,
+                            label=f"{label} ({tag}, {result.order_before if tag == 'full' else result.order_after} states)")
+            ax_ph.semilogx(f, np.degrees(np.unwrap(np.angle(g))), style, color=colors[k % 10], linewidth=1.0)
+    if result.band_hz is not None:
+        for ax in (ax_mag, ax_ph):
+            ax.axvspan(max(result.band_hz[0], f[0]), result.band_hz[1], color="0.9", zorder=0)
+    ax_mag.set_ylabel("magnitude (dB)")
+    ax_ph.set_ylabel("phase (deg)")
+    ax_ph.set_xlabel("frequency (Hz)")
+    for ax in (ax_mag, ax_ph):
+        ax.grid(True, which="both", alpha=0.3)
+    ax_mag.legend(fontsize=7)
+    rel = m.hinf_relative_error
+    fig.suptitle(f"{result.method} reduction ({result.variant}): {result.order_before} → "
+                 f"{result.order_after} states, H∞ error {m.hinf_error:.3g}"
+                 + (f" ({100 * rel:.3g} % of the flexible part)" if rel is not None else ""), fontsize=10)
+    return fig

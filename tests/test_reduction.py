@@ -1,0 +1,554 @@
+"""sicomat.reduction: modal, balanced and physical reduction against closed forms and python-control."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from matplotlib.figure import Figure
+from numpy.testing import assert_allclose
+
+from sicomat import ChainSpec, LumpedSpec, ModelError, build_mechanics, load_model
+from sicomat.modelfile import save_model
+from sicomat.plant import Plant
+from sicomat.reduction import (balanced_truncation, error_metrics, frequency_grid, frequency_limited_truncation,
+                               frequency_response, hankel_norm_approximation, hankel_singular_values,
+                               modal_truncation, physical_reduction, reduce_command, reduced_machine,
+                               schur_truncation, spectral_split, technological_dofs)
+from sicomat.reduction.balanced import band_gramian_operator
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+TWO_PI = 2 * math.pi
+
+
+# --------------------------------------------------------------------------- models
+def chain(n: int = 12, grounded: bool = True, seed: int = 0, damping: float = 20.0, viscous: float = 0.05):
+    """A lightly damped chain of n masses (1–1.5 kg, springs 1–1.5 MN/m), driven on m1."""
+    rng = np.random.default_rng(seed)
+    return ChainSpec(type="chain", masses=list(1.0 + 0.5 * rng.random(n)),
+                     stiffnesses=list(1e6 * (1.0 + 0.5 * rng.random(n - 1))),
+                     dampings=[damping] * (n - 1), viscous=[viscous] * n if viscous else None,
+                     ground_stiffness=1e6 if grounded else 0.0)
+
+
+def plant_of(spec) -> Plant:
+    return build_mechanics(spec).state_space()
+
+
+def paper_5m4s():
+    return load_model(EXAMPLES / "paper_5m4s.toml")
+
+
+def sorted_poles(A) -> np.ndarray:
+    lam = np.linalg.eigvals(A)
+    return lam[np.lexsort((lam.imag, np.round(np.abs(lam), 6)))]
+
+
+def frf(plant: Plant, omega) -> np.ndarray:
+    """Reference response by one dense solve per frequency (independent of the package's evaluator)."""
+    n = plant.n_states
+    return np.array([plant.C @ np.linalg.solve(1j * w * np.eye(n) - plant.A, plant.B) + plant.D for w in omega])
+
+
+def error_plant(full: Plant, reduced: Plant) -> Plant:
+    """``G − G_r`` as one plant (block-diagonal realization)."""
+    import scipy.linalg
+
+    A = scipy.linalg.block_diag(full.A, reduced.A)
+    names = tuple(f"x{i}" for i in range(A.shape[0]))
+    return Plant(A, np.vstack([full.B, reduced.B]), np.hstack([full.C, -reduced.C]), full.D - reduced.D,
+                 names, full.inputs, full.outputs)
+
+
+# --------------------------------------------------------------------------- frequency machinery
+def test_frequency_response_matches_dense_solves_with_rigid_mode():
+    plant = plant_of(chain(6, grounded=False))
+    omega = np.logspace(0, 4, 37)
+    # Not to the last digits at low frequency: K's row sums are round-off (1e-10 N/m), so the
+    # assembled model has its rigid pole at about -2e-9 rad/s, which the split puts exactly at 0.
+    assert_allclose(frequency_response(plant, omega), frf(plant, omega), rtol=1e-6, atol=0)
+    high = omega > 100
+    assert_allclose(frequency_response(plant, omega[high]), frf(plant, omega[high]), rtol=1e-9, atol=0)
+
+
+def test_spectral_split_rigid_mode_counts_two_states_and_poles_exactly_zero():
+    # free chain without friction to the frame: a double pole at 0 (Jordan block)
+    split = spectral_split(plant_of(chain(5, grounded=False, viscous=0.0)))
+    assert split.rigid.n == 2 and np.all(split.rigid.poles() == 0)
+    # viscous guides: the rigid mode is a pole at 0 and the slow real pole -c/m of the whole chain
+    spec = chain(5, grounded=False)
+    split = spectral_split(plant_of(spec))
+    poles = np.sort(split.rigid.poles().real)
+    assert split.rigid.n == 2 and poles[1] == 0.0
+    assert_allclose(poles[0], -sum(spec.viscous) / sum(spec.masses), rtol=1e-6)
+
+
+def test_grid_holds_every_pole_frequency_and_half_power_points():
+    lam = np.array([-0.01 + 100j, -0.01 - 100j, -3.0])
+    omega = frequency_grid(lam)
+    for w in (100.0, abs(lam[0]), 100.01, 99.99, 3.0):
+        assert np.any(np.isclose(omega, w, rtol=1e-12))
+
+
+def test_grid_hinf_matches_exact_linf_norm():
+    control = pytest.importorskip("control")
+    pytest.importorskip("slycot")
+    plant = plant_of(chain(40))
+    res = balanced_truncation(plant, 12)
+    exact, _ = control.linfnorm(plant.to_control() - res.reduced.to_control())
+    assert_allclose(res.hinf_error, float(exact), rtol=1e-4)
+
+
+# --------------------------------------------------------------------------- modal truncation
+@pytest.mark.parametrize("grounded", [True, False])
+@pytest.mark.parametrize("order", [4, 8, 14])
+def test_modal_truncation_keeps_lowest_frequencies_exactly(grounded, order):
+    spec = chain(12, grounded=grounded)
+    plant = plant_of(spec)
+    res = modal_truncation(plant, order)
+    assert res.order_after == order
+    full = sorted_poles(plant.A)[:order]
+    reduced = sorted_poles(res.reduced.A)
+    assert_allclose(np.abs(reduced), np.abs(full), rtol=1e-9, atol=1e-12)
+    assert_allclose(reduced.real, full.real, rtol=1e-7, atol=1e-9)
+    # and these are the mechanics' lowest natural frequencies
+    modes = build_mechanics(spec).modes().frequencies_hz
+    assert_allclose(res.frequencies_hz, np.sort(modes)[: len(res.frequencies_hz)], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("grounded", [True, False])
+def test_modal_truncation_keeps_static_gain_of_flexible_part(grounded):
+    plant = plant_of(chain(12, grounded=grounded))
+    res = modal_truncation(plant, 6)
+    assert res.dc_gain_error <= 1e-10 * np.linalg.norm(spectral_split(plant).dc_gain(), 2)
+    if grounded:  # the whole static gain, independently of the split
+        dc = lambda p: p.D - p.C @ np.linalg.solve(p.A, p.B)  # noqa: E731
+        assert_allclose(dc(res.reduced), dc(plant), rtol=1e-9)
+
+
+def test_modal_truncation_rigid_mode_and_one_flexible_mode_make_four_states():
+    m1, m2, k, c = 3.0, 5.0, 1e6, 2.0
+    plant = plant_of(ChainSpec(type="chain", masses=[m1, m2, 1.0], stiffnesses=[k, 1e9], dampings=[c, 1.0]))
+    res = modal_truncation(plant, 4)
+    poles = np.sort_complex(np.linalg.eigvals(res.reduced.A))
+    assert np.sum(poles == 0) == 2
+    # the flexible mode kept is the lowest one of the full model, exactly
+    flexible = sorted_poles(plant.A)[2:4]
+    assert_allclose(np.sort_complex(poles[np.abs(poles) > 0]), np.sort_complex(flexible), rtol=1e-9)
+
+
+def test_modal_truncation_never_splits_a_complex_pair():
+    res = modal_truncation(plant_of(chain(8)), 5)
+    assert res.order_after == 4 and any("split" in note for note in res.notes)
+
+
+def test_modal_truncation_matches_python_control_modal_form_and_modred():
+    control = pytest.importorskip("control")
+    plant = plant_of(chain(10))
+    order = 8
+    msys, _ = control.modal_form(plant.to_control())
+    A = msys.A  # block-diagonal: |λ| of each state's block
+    per_state = np.zeros(A.shape[0])
+    i = 0
+    while i < A.shape[0]:
+        if i + 1 < A.shape[0] and A[i, i + 1] != 0:
+            per_state[i:i + 2] = np.sqrt(abs(np.linalg.det(A[i:i + 2, i:i + 2])))
+            i += 2
+        else:
+            per_state[i] = abs(A[i, i])
+            i += 1
+    elim = np.sort(np.argsort(per_state, kind="stable")[order:])
+    peer = control.modred(msys, elim, method="matchdc")
+    res = modal_truncation(plant, order)
+    omega = np.logspace(1, 4, 80)
+    peer_plant = Plant(peer.A, peer.B, peer.C, peer.D, tuple(f"x{i}" for i in range(order)), plant.inputs,
+                       plant.outputs)
+    assert_allclose(frf(res.reduced, omega), frf(peer_plant, omega), rtol=1e-7)
+
+
+# --------------------------------------------------------------------------- balanced truncation
+@pytest.mark.parametrize("a, b, c", [(1.0, 1.0, 1.0), (3.0, 2.0, 5.0), (1e3, 1e-2, 4e4)])
+def test_hankel_singular_value_of_first_order_system(a, b, c):
+    plant = Plant([[-a]], [[b]], [[c]], [[0.0]], ("x",), ("u",), ("y",))
+    assert_allclose(hankel_singular_values(plant), [abs(b * c) / (2 * a)], rtol=1e-12)
+
+
+REDUCTORS = {
+    "square-root": lambda p, r: balanced_truncation(p, r),
+    "singular-perturbation": lambda p, r: balanced_truncation(p, r, match_dc=True),
+    "schur": lambda p, r: schur_truncation(p, r),
+    "hankel-norm": lambda p, r: hankel_norm_approximation(p, r),
+}
+
+
+@pytest.mark.parametrize("variant", list(REDUCTORS))
+@pytest.mark.parametrize("grounded", [True, False])
+@pytest.mark.parametrize("order", [4, 10, 16])
+def test_balanced_error_under_its_bound_and_above_the_next_hsv(variant, grounded, order):
+    plant = plant_of(chain(14, grounded=grounded))
+    res = REDUCTORS[variant](plant, order)
+    assert res.variant == variant and res.order_after == order
+    rigid = spectral_split(plant, marginal=True).rigid.n
+    sigma = res.hankel_singular_values
+    assert res.hinf_error <= res.error_bound * (1 + 1e-6)
+    # no model of that order does better than the next Hankel singular value (Glover)
+    assert res.hinf_error >= sigma[order - rigid] * (1 - 1e-6)
+
+
+def test_hankel_norm_approximation_is_optimal_in_the_hankel_norm():
+    plant = plant_of(chain(10))
+    for order in (4, 9):
+        res = hankel_norm_approximation(plant, order)
+        error_hsv = hankel_singular_values(error_plant(plant, res.reduced))
+        assert_allclose(error_hsv[0], res.hankel_singular_values[order], rtol=1e-6)
+
+
+@pytest.mark.parametrize("grounded", [True, False])
+def test_singular_perturbation_keeps_static_gain(grounded):
+    plant = plant_of(chain(14, grounded=grounded))
+    res = balanced_truncation(plant, 6, match_dc=True)
+    assert res.dc_gain_error <= 1e-9 * np.linalg.norm(spectral_split(plant).dc_gain(), 2)
+    assert res.metrics.dc_gain_relative_error < 1e-9
+
+
+def test_balanced_truncation_keeps_rigid_mode_exactly():
+    plant = plant_of(chain(10, grounded=False, viscous=0.0))
+    res = balanced_truncation(plant, 6)
+    assert np.sum(np.linalg.eigvals(res.reduced.A[:2, :2]) == 0) == 2
+    assert res.reduced.states[:2] == ("rigid.1", "rigid.2")
+    # the error stays finite down to low frequencies: the double integrators cancel
+    omega = np.array([1e-2, 1e-1])
+    E = frf(plant, omega) - frf(res.reduced, omega)
+    assert np.all(np.abs(E) < 10 * res.error_bound)
+
+
+def test_balanced_is_invariant_to_state_renumbering():
+    plant = plant_of(chain(9))
+    perm = np.random.default_rng(1).permutation(plant.n_states)
+    shuffled = Plant(plant.A[np.ix_(perm, perm)], plant.B[perm], plant.C[:, perm], plant.D,
+                     tuple(plant.states[i] for i in perm), plant.inputs, plant.outputs)
+    omega = np.logspace(1, 4, 50)
+    a, b = balanced_truncation(plant, 8), balanced_truncation(shuffled, 8)
+    assert_allclose(a.hankel_singular_values[:10], b.hankel_singular_values[:10], rtol=1e-9)
+    assert_allclose(frf(a.reduced, omega), frf(b.reduced, omega), rtol=1e-7, atol=1e-14)
+
+
+def test_stiff_model_paper_5m4s_balanced_keeps_rigid_part_and_static_compliance():
+    mech = build_mechanics(paper_5m4s().axis().mechanics)
+    plant = mech.state_space()
+    res = balanced_truncation(plant, 6, match_dc=True)
+    assert res.order_after == 6
+    assert res.hinf_error <= res.error_bound * (1 + 1e-6)
+    assert res.metrics.dc_gain_relative_error < 1e-8
+    assert res.frequencies_hz[0] == 0.0
+
+
+@pytest.mark.parametrize("grounded", [True, False])
+def test_balanced_matches_python_control_balred(grounded):
+    control = pytest.importorskip("control")
+    pytest.importorskip("slycot")
+    plant = plant_of(chain(12, grounded=grounded))
+    order = 10
+    omega = np.logspace(0.5, 4, 60)
+    for match_dc, method in ((False, "truncate"), (True, "matchdc")):
+        res = balanced_truncation(plant, order, match_dc=match_dc)
+        try:
+            peer = control.balred(plant.to_control(), order, method=method)
+        except Exception as exc:  # noqa: BLE001 - the peer's own limits are not our failure
+            pytest.skip(f"balred cannot reduce this model: {exc}")
+        peer_plant = Plant(peer.A, peer.B, peer.C, peer.D, tuple(f"x{i}" for i in range(peer.nstates)),
+                           plant.inputs, plant.outputs)
+        G = frf(plant, omega)
+        scale = np.max(np.abs(G))
+        assert np.max(np.abs(frf(res.reduced, omega) - frf(peer_plant, omega))) <= 1e-5 * scale
+
+
+def test_hankel_singular_values_match_slycot():
+    pytest.importorskip("slycot")
+    from slycot import ab09ad
+
+    plant = plant_of(chain(12))
+    n, m, p = plant.n_states, 1, len(plant.outputs)
+    *_, hsv = ab09ad("C", "B", "N", n, m, p, plant.A, plant.B, plant.C, nr=6, tol=0.0)
+    ours = hankel_singular_values(plant)
+    assert_allclose(ours[:12], hsv[:12], rtol=1e-7)
+
+
+def test_schur_method_matches_slycot_balancing_free():
+    pytest.importorskip("slycot")
+    from slycot import ab09ad
+
+    plant = plant_of(chain(12))
+    n, p = plant.n_states, len(plant.outputs)
+    nr, Ar, Br, Cr, _ = ab09ad("C", "N", "N", n, 1, p, plant.A, plant.B, plant.C, nr=8, tol=0.0)
+    peer = Plant(Ar[:nr, :nr], Br[:nr], Cr[:, :nr], plant.D, tuple(f"x{i}" for i in range(nr)), plant.inputs,
+                 plant.outputs)
+    res = schur_truncation(plant, 8)
+    omega = np.logspace(0.5, 4, 60)
+    scale = np.max(np.abs(frf(plant, omega)))
+    assert np.max(np.abs(frf(res.reduced, omega) - frf(peer, omega))) <= 1e-6 * scale
+
+
+# --------------------------------------------------------------------------- frequency-limited Gramians
+def test_band_gramian_equals_integral_over_the_band():
+    plant = plant_of(chain(4))
+    split = spectral_split(plant, marginal=True)
+    T, B = split.flexible.A, split.flexible.B
+    import scipy.linalg
+
+    P = scipy.linalg.solve_continuous_lyapunov(T, -B @ B.T)
+    w1, w2 = TWO_PI * 10, TWO_PI * 200
+    S = band_gramian_operator(T, (w1, w2))
+    P_band = S @ P + P @ S.T
+    w = np.linspace(w1, w2, 40001)
+    F = np.linalg.solve(1j * w[:, None, None] * np.eye(T.shape[0]) - T, np.broadcast_to(B, (w.size, *B.shape)))
+    integrand = np.einsum("wik,wjk->wij", F, F.conj()).real / np.pi  # (1/2π) ∫ over ±[w1, w2]
+    assert_allclose(P_band, np.trapezoid(integrand, w, axis=0), rtol=1e-6, atol=1e-8 * np.abs(P_band).max())
+    # the whole axis gives back the ordinary Gramian
+    S_all = band_gramian_operator(T, (0.0, 1e12))
+    assert_allclose(S_all @ P + P @ S_all.T, P, rtol=1e-6, atol=1e-9 * np.abs(P).max())
+
+
+@pytest.mark.parametrize("band", [(0.0, 30.0), (0.0, 60.0), (20.0, 60.0)])
+def test_frequency_limited_truncation_beats_balanced_in_its_band(band):
+    plant = plant_of(chain(30, seed=3))
+    fl = frequency_limited_truncation(plant, 8, band)
+    bt = balanced_truncation(plant, 8, band_hz=band)
+    assert fl.error_bound is None and fl.band_hz == band
+    assert fl.band_max_error < bt.band_max_error
+    assert np.all(np.linalg.eigvals(fl.reduced.A).real < 0)
+
+
+# --------------------------------------------------------------------------- physical regrouping
+@pytest.mark.parametrize("k", [1e7, 1e8, 1e9])
+def test_two_masses_on_a_stiff_spring_regroup_to_the_rigid_mass_to_first_order_in_1_over_k(k):
+    m1, m2 = 2.0, 3.0
+    res = physical_reduction(ChainSpec(type="chain", masses=[m1, m2], stiffnesses=[k]), keep=["m1"])
+    assert list(res.spec.bodies) == ["m1"] and res.spec.bodies["m1"].mass == m1 + m2
+    assert not res.spec.couplings and res.merged_into == {"m2": "m1"}
+    assert res.spec.sensors["last"].body == "m1"
+    w = np.array([10.0, 100.0])
+    full = frf(res.full, w)[:, 0, 0]
+    red = frf(res.reduced, w)[:, 0, 0]
+    assert_allclose(red, -1.0 / ((m1 + m2) * w ** 2), rtol=1e-12)
+    # x1/F: the relative error of the rigid model is exactly −m2² ω² / (k (m1+m2) − m1 m2 ω²)
+    assert_allclose(full / red - 1, -m2 ** 2 * w ** 2 / (k * (m1 + m2) - m1 * m2 * w ** 2), rtol=1e-6)
+
+
+def test_series_springs_combine_and_masses_split_by_the_lever_rule():
+    m, k1, k2 = [1.0, 2.0, 3.0], 4e6, 1e6
+    res = physical_reduction(ChainSpec(type="chain", masses=m, stiffnesses=[k1, k2], dampings=[10.0, 30.0]),
+                             keep=["m1", "m3"])
+    (name, coupling), = res.spec.couplings.items()
+    assert coupling.between == ("m1", "m3")
+    assert_allclose(coupling.stiffness, 1 / (1 / k1 + 1 / k2), rtol=1e-12)
+    w = k1 / (k1 + k2)  # m2 follows m1 by k1/(k1+k2) statically
+    assert_allclose(res.spec.bodies["m1"].mass, m[0] + m[1] * w, rtol=1e-12)
+    assert_allclose(res.spec.bodies["m3"].mass, m[2] + m[1] * (1 - w), rtol=1e-12)
+    assert_allclose(sum(b.mass for b in res.spec.bodies.values()), sum(m), rtol=1e-12)
+    # the static compliance between the kept bodies is exact
+    assert res.metrics.dc_gain_relative_error is None or res.metrics.dc_gain_relative_error < 1e-9
+
+
+def test_parallel_springs_add_before_combining_in_series():
+    spec = LumpedSpec(bodies={"a": {"mass": 1.0}, "b": {"mass": 1.0}, "c": {"mass": 1.0}},
+                      couplings={"k1": {"between": ["a", "b"], "stiffness": 1e6},
+                                 "k2": {"between": ["a", "b"], "stiffness": 2e6},
+                                 "k3": {"between": ["b", "c"], "stiffness": 6e6}},
+                      actuators={"f": {"body": "a"}}, sensors={"s": {"body": "c"}})
+    res = physical_reduction(spec, keep=["a", "c"])
+    (coupling,) = res.spec.couplings.values()
+    assert_allclose(coupling.stiffness, 1 / (1 / 3e6 + 1 / 6e6), rtol=1e-12)
+
+
+def test_transmission_ratio_is_respected_on_the_ball_screw():
+    machine = load_model(EXAMPLES / "ballscrew_3m2s.toml")
+    spec = machine.axis().mechanics
+    lead = spec.couplings["screw_nut"].ratios[0]  # m/rad
+    res = physical_reduction(spec, keep=["motor", "table"])
+    (coupling,) = res.spec.couplings.values()
+    k_t, k_nut = spec.couplings["coupling"].stiffness, spec.couplings["screw_nut"].stiffness
+    assert_allclose(coupling.ratios, (lead, 1.0), rtol=1e-12)
+    assert_allclose(coupling.stiffness, 1 / (1 / k_nut + lead ** 2 / k_t), rtol=1e-9)  # N/m at the table
+    # the inertia seen by the motor in a rigid motion is unchanged: J_m + J_s + m lead²
+    J = {n: b.value for n, b in spec.bodies.items()}
+    Jr = {n: b.value for n, b in res.spec.bodies.items()}
+    assert_allclose(Jr["motor"] + Jr["table"] * lead ** 2, J["motor"] + J["screw"] + J["table"] * lead ** 2,
+                    rtol=1e-12)
+    # the screw rides mostly on the motor (stiff coupling), a little on the table
+    share = k_t / (k_t + k_nut * lead ** 2)
+    assert_allclose(Jr["motor"], J["motor"] + J["screw"] * share, rtol=1e-9)
+
+
+@pytest.mark.parametrize("order, bodies", [(6, ["structure", "primary", "load"]), (4, ["structure", "primary"])])
+def test_paper_5m4s_regroups_to_3m2s_and_2m1s(order, bodies):
+    machine = paper_5m4s()
+    res = physical_reduction(machine.axis().mechanics, order=order)
+    assert list(res.spec.bodies) == bodies and res.order_after == order
+    masses = {n: b.mass for n, b in res.spec.bodies.items()}
+    assert_allclose(masses["structure"], 3667 + 232, rtol=1e-12)  # the secondary on its 1e12 N/m spring
+    moving = 92.305 + 0.008 + (0 if "load" in bodies else 270.2)
+    assert_allclose(masses["primary"], moving, rtol=1e-12)
+    assert res.spec.actuators["motor"].body == "primary" and res.spec.actuators["motor"].reaction == "structure"
+    assert res.spec.sensors["scale"].relative_to == "structure"
+    springs = sum(1 for c in res.spec.couplings.values() if c.stiffness > 0)
+    assert springs == len(bodies) - 1  # 3M2S, 2M1S
+    # the first flexible mode (the paper's f_meca ≈ 80 Hz) is kept to 0.01 %
+    assert_allclose(res.frequencies_hz[1], res.frequencies_hz_full[1], rtol=1e-4)
+    assert res.frequencies_hz[1] == pytest.approx(80.6, abs=0.1)
+
+
+def test_band_rule_merges_springs_much_stiffer_than_the_band():
+    res = physical_reduction(paper_5m4s().axis().mechanics, band_hz=(0.0, 200.0))
+    assert res.kept == ("structure", "primary", "load")
+
+
+def test_technological_rule_keeps_signal_bodies():
+    spec = paper_5m4s().axis().mechanics
+    assert technological_dofs(spec) == ("structure", "secondary", "primary", "scale_head")
+    res = physical_reduction(spec)
+    assert res.kept == technological_dofs(spec) and res.merged_into == {"load": "primary"}
+
+
+def test_reduced_model_file_round_trip(tmp_path):
+    machine = paper_5m4s()
+    res = physical_reduction(machine.axis().mechanics, order=6)
+    reduced = reduced_machine(machine, "X", res.spec, merged_into=res.merged_into)
+    path = save_model(reduced, tmp_path / "reduced.toml")
+    back = load_model(path)
+    assert back.axis("X").mechanics == res.spec
+    assert back.axis("X").controller == machine.axis("X").controller
+    again = build_mechanics(back.axis("X").mechanics).state_space()
+    omega = np.logspace(1, 4, 20)
+    assert_allclose(frf(again, omega), frf(res.reduced, omega), rtol=1e-12)
+
+
+def test_reduced_machine_moves_a_merged_tool():
+    machine = load_model(EXAMPLES / "paper_5m4s.toml").model_copy()
+    data = machine.model_dump(mode="json", exclude_none=True)
+    data["axes"]["X"]["tool"] = "load"
+    from sicomat.model import Machine
+
+    machine = Machine.model_validate(data)
+    res = physical_reduction(machine.axis().mechanics, order=4)
+    reduced = reduced_machine(machine, None, res.spec, merged_into=res.merged_into)
+    assert reduced.axis().tool == "primary"
+    with pytest.raises(ModelError, match="tool"):
+        reduced_machine(machine, None, res.spec)
+
+
+# --------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize("call, match", [
+    (lambda p: modal_truncation(p, 99), "larger than the model"),
+    (lambda p: balanced_truncation(p, 0), "too small"),
+    (lambda p: modal_truncation(p, 2.5), "whole number"),
+    (lambda p: balanced_truncation(p, 4, band_hz=(50.0, 10.0)), "low < high"),
+    (lambda p: frequency_limited_truncation(p, 4, (10.0, 10.0)), "low < high"),
+])
+def test_bad_orders_and_bands_are_model_errors(call, match):
+    plant = plant_of(chain(5, grounded=False))
+    with pytest.raises(ModelError, match=match) as info:
+        call(plant)
+    assert isinstance(info.value, ValueError)
+
+
+def test_order_below_the_rigid_part_is_refused():
+    with pytest.raises(ModelError, match="rigid"):
+        modal_truncation(plant_of(chain(5, grounded=False)), 1)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"keep": []}, "keep-list is empty"),
+    ({"keep": ["m1", "nope"]}, "unknown body 'nope'"),
+    ({"order": 3}, "even order"),
+    ({"order": 12}, "larger than the model"),
+    ({"keep": ["m1", "m2"], "order": 6}, "disagree"),
+])
+def test_physical_bad_input(kwargs, match):
+    with pytest.raises(ModelError, match=match):
+        physical_reduction(chain(5), **kwargs)
+
+
+def test_physical_refuses_a_body_held_by_no_spring():
+    spec = paper_5m4s().axis().mechanics  # primary/load/scale_head touch the rest by friction only
+    with pytest.raises(ModelError, match="no spring holds"):
+        physical_reduction(spec, keep=["structure", "secondary"])
+
+
+@pytest.mark.parametrize("method, order, keep, band, option", [
+    ("modal", 500, None, None, "--order"),
+    ("balanced", 0, None, None, "--order"),
+    ("physical", None, "", None, "--keep"),
+    ("physical", None, "primary,ghost", None, "--keep"),
+    ("modal", 4, None, "200:100", "--band"),
+    ("modal", 4, None, "0-200", "--band"),
+    ("modal", 4, "primary", None, "--keep"),
+    ("fourier", 4, None, None, "--method"),
+])
+def test_reduce_command_bad_input_names_the_option(method, order, keep, band, option):
+    with pytest.raises(ModelError) as info:
+        reduce_command(paper_5m4s(), None, method, order, keep, band)
+    assert info.value.source == option and str(info.value).startswith(option)
+
+
+# --------------------------------------------------------------------------- the CLI-facing call and results
+@pytest.mark.parametrize("method, order, keep, band", [
+    ("modal", 4, None, None), ("balanced", 6, None, None), ("balanced", 6, None, "0:500"),
+    ("balanced-dc", 6, None, None), ("schur", 6, None, None), ("hankel", 6, None, None),
+    ("physical", None, "structure,primary,load", "0:200"), ("physical", 4, None, None),
+    ("modal", None, None, "0:200"),
+])
+def test_reduce_command_json_contract(method, order, keep, band):
+    res = reduce_command(paper_5m4s(), "X", method, order, keep, band)
+    payload = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    for key in ("method", "order_before", "order_after", "hinf_error", "dc_gain_error", "frequencies_hz"):
+        assert key in payload
+    assert payload["order_before"] == 10
+    if order is not None:
+        assert payload["order_after"] == order
+    assert payload["frequencies_hz"][0] == 0.0  # the rigid-body mode is kept
+    assert_allclose(payload["frequencies_hz"][1], 80.6014, rtol=1e-3)
+    if method == "physical":
+        assert res.machine is not None and res.spec is not None and payload["kept"]
+    else:
+        assert res.machine is None
+
+
+def test_modal_order_from_band_keeps_modes_up_to_twice_the_band():
+    res = reduce_command(paper_5m4s(), None, "modal", None, None, "0:200")
+    assert res.order_after == 6  # the rigid mode, 80.6 Hz and 374 Hz (< 2 × 200 Hz); not 5.6 kHz
+    assert_allclose(res.frequencies_hz, res.frequencies_hz_full[:3], rtol=1e-9)
+
+
+def test_plot_is_a_bode_figure_with_full_and_reduced():
+    res = modal_truncation(plant_of(chain(6)), 4, band_hz=(0.0, 100.0))
+    fig = res.plot()
+    assert isinstance(fig, Figure)
+    mag, phase = fig.axes
+    assert len(mag.lines) == 2 * len(res.full.outputs) and mag.get_xscale() == "log"
+
+
+def test_error_metrics_of_identical_plants_are_zero():
+    plant = plant_of(chain(6, grounded=False))
+    m = error_metrics(plant, plant, band_hz=(0.0, 50.0))
+    assert m.hinf_error == 0.0 and m.dc_gain_error == 0.0 and m.band_max_error == 0.0
+
+
+# --------------------------------------------------------------------------- properties
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(3, 9), seed=st.integers(0, 10_000), grounded=st.booleans(), data=st.data())
+def test_properties_dc_kept_and_bound_respected_on_random_chains(n, seed, grounded, data):
+    plant = plant_of(chain(n, grounded=grounded, seed=seed))
+    rigid = spectral_split(plant, marginal=True).rigid.n
+    order = data.draw(st.integers(max(rigid, 1), plant.n_states))
+    mod = modal_truncation(plant, order)
+    assert mod.metrics.dc_gain_relative_error is None or mod.metrics.dc_gain_relative_error < 1e-8
+    bt = balanced_truncation(plant, order)
+    assert bt.hinf_error <= bt.error_bound * (1 + 1e-6) + 1e-12 * np.max(bt.hankel_singular_values)
+    spa = balanced_truncation(plant, order, match_dc=True)
+    assert spa.metrics.dc_gain_relative_error is None or spa.metrics.dc_gain_relative_error < 1e-7
