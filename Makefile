@@ -20,12 +20,17 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/sicomat check $(EXAMPLE)
 	$(BIN)/sicomat modal $(EXAMPLE) --plot out/modes.png
-	@echo "mode-shape figure: out/modes.png"
+	$(BIN)/sicomat margins $(EXAMPLE)
+	$(BIN)/sicomat tune $(EXAMPLE) --velocity-crossover 125.6 --velocity-phase-margin 45 --position-phase-margin 80 --write out/paper_5m4s_tuned.toml
+	$(BIN)/sicomat simulate out/paper_5m4s_tuned.toml --plot out/move.png --out out/move.csv
+	$(BIN)/sicomat bode out/paper_5m4s_tuned.toml --loop velocity-open --nichols --plot out/nichols.png
+	@echo "figures: out/modes.png out/move.png out/nichols.png; tuned model: out/paper_5m4s_tuned.toml"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q --doctest-modules src/sicomat tests
 
 bench: $(STAMP)
+	$(BIN)/python -m pip install --quiet 'slycot>=0.6' || echo "slycot unavailable: the peers run without it"
 	$(BIN)/python -m benchmarks.run
 
 clean:

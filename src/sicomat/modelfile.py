@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import tempfile
 import tomllib
 from pathlib import Path
 from typing import Any, Iterable, Mapping
@@ -137,21 +136,10 @@ def dump_model(machine: Machine) -> str:
 
 def save_model(machine: Machine, path: str | os.PathLike) -> Path:
     """Write the machine to ``path`` atomically (temporary file in the same folder, then rename)."""
-    from .errors import OutputError
+    from .atomic import atomic_write
 
-    path = Path(path)
-    if not path.parent.is_dir():
-        raise OutputError(f"{path}: the folder {str(path.parent)!r} does not exist")
     text = dump_model(machine)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
 # --------------------------------------------------------------------------- errors

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -107,20 +106,11 @@ def plot_path_run(run, magnification: float = 1.0) -> "Figure":
 
 def save_figure(fig: "Figure", path: str | os.PathLike) -> Path:
     """Save ``fig`` to ``path`` atomically (format from the suffix: .png, .svg, .pdf)."""
+    from .atomic import atomic_write
     from .errors import OutputError
 
     path = Path(path)
     suffix = path.suffix.lower().lstrip(".") or "png"
     if suffix not in ("png", "svg", "pdf"):
         raise OutputError(f"{path}: unsupported figure format {suffix!r}; expected .png, .svg or .pdf")
-    if not path.parent.is_dir():
-        raise OutputError(f"{path}: the folder {str(path.parent)!r} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".{suffix}", dir=path.parent or ".")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format=suffix, dpi=120)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, format=suffix, dpi=120), suffix=f".{suffix}")

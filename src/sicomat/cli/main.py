@@ -288,6 +288,51 @@ def circle(model: Path = ModelArgument,
             print_circle(test.to_dict())
 
 
+@app.command()
+def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
+           method: str = typer.Option("modal", "--method",
+                                      help="modal | balanced | balanced-dc | schur | hankel | physical"),
+           order: Optional[int] = typer.Option(None, "--order", help="States of the reduced model "
+                                               "(a rigid mode and one flexible mode make 4)."),
+           keep: Optional[str] = typer.Option(None, "--keep", metavar="DOF,...",
+                                              help="Bodies kept by the physical method."),
+           band: Optional[str] = typer.Option(None, "--band", metavar="LOW_HZ:HIGH_HZ",
+                                              help="Band of interest (errors, frequency-limited Gramians, "
+                                                   "stiff-spring rule)."),
+           write: Optional[Path] = typer.Option(None, "--write", metavar="REDUCED.toml", dir_okay=False,
+                                                help="Write the reduced model (physical method)."),
+           set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
+    """Reduce an axis's model: modal truncation, balanced (Gramian) truncation, physical regrouping."""
+    with guarded(model):
+        from ..errors import ModelError
+        from ..reduction.cli_support import METHODS, reduce_command
+
+        if method not in METHODS:
+            raise ModelError(f"expected one of {', '.join(METHODS)}", source="--method", value=method)
+        machine = load(model, set_)
+        result = reduce_command(machine, axis, method, order, keep, band)
+        if write is not None:
+            if getattr(result, "machine", None) is None:
+                raise ModelError("only the physical method gives a model file; the others give a state space",
+                                 source="--write", value=str(write))
+            from ..modelfile import save_model
+
+            save_model(result.machine, write)
+        if plot is not None:
+            from ..plotting import save_figure
+
+            save_figure(result.plot(), plot)
+        payload = result.to_dict()
+        if write is not None:
+            payload["written"] = str(write)
+        if json_:
+            emit_json(payload)
+        else:
+            from .tables import print_reduction
+
+            print_reduction(payload)
+
+
 _LOOP_NAMES = ("plant", "velocity-open", "velocity-closed", "position-open", "position-closed",
                "following-error", "compliance", "disturbance")
 

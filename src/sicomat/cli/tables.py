@@ -209,3 +209,18 @@ def print_path(payload: dict[str, Any]) -> None:
         table.add_row(f"{name} ({axis['machine_axis']})", f"{axis['max_following_error'] * 1e6:.4g}",
                       f"{axis['rms_following_error'] * 1e6:.4g}", f"{axis['final_error'] * 1e6:.4g}")
     Console(highlight=False).print(table)
+
+
+def print_reduction(payload: dict[str, Any]) -> None:
+    """Print the report of ``sicomat reduce``."""
+    from rich.console import Console
+
+    console = Console(highlight=False)
+    console.print(f"[bold]{payload['method']}[/]: {payload['order_before']} → {payload['order_after']} states")
+    for key in ("hinf_error", "dc_gain_error", "error_bound"):
+        if payload.get(key) is not None:
+            console.print(f"  {key}: {payload[key]:.4g}")
+    freqs = payload.get("frequencies_hz") or []
+    console.print("  frequencies of the reduced model (Hz): " + ", ".join(f"{f:.4g}" for f in freqs))
+    if payload.get("written"):
+        console.print(f"  written: {payload['written']}")

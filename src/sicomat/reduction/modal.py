@@ -177,7 +177,7 @@ def spectral_split(plant: Plant, *, rigid_tol: float = RIGID_TOL, marginal: bool
     A rigid-body mode has two states: its poles are a double pole at 0 or, when it is damped to
     the frame (viscous guides), a pole at 0 and a slow real pole ``−c/m``. The rigid part therefore
     holds the poles at 0 and, for each of them, at most one real pole slower than a tenth of the
-    slowest oscillating mode. So "a rigid mode and one flexible mode make 4 states", and the static
+    slowest oscillating mode (the slowest real poles when nothing oscillates). So "a rigid mode and one flexible mode make 4 states", and the static
     gain of the flexible part is the structure's compliance.
 
     Parameters
@@ -221,7 +221,8 @@ def spectral_split(plant: Plant, *, rigid_tol: float = RIGID_TOL, marginal: bool
         real = np.abs(lam.imag) <= 1e-12 * rho
         osc = np.abs(lam[~real & ~is_zero])
         slow = np.sort(np.abs(lam[real & ~is_zero & (lam.real < 0)]))
-        slow = slow[slow <= 0.1 * osc.min()] if osc.size else slow[:0]
+        if osc.size:
+            slow = slow[slow <= 0.1 * osc.min()]
         if slow.size:
             companion = float(slow[:int(is_zero.sum())][-1])
 
