@@ -93,7 +93,8 @@ def parse_quantity(value: Any, unit: Unit) -> float:
     if isinstance(value, (int, float)):
         result = float(value)
     elif isinstance(value, str):
-        result = _parse_string(value, unit)
+        # unit conversion leaves last-digit noise ("9 ms" -> 0.009000000000000001): keep 15 digits
+        result = float(f"{_parse_string(value, unit):.15g}")
     else:
         raise ValueError(f"expected {unit.name}, a number or a string with units")
     if not math.isfinite(result):

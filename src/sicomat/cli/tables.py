@@ -31,6 +31,10 @@ def check_payload(machine: "Machine", mechanics: dict[str, "Mechanics"]) -> dict
             "sensors": [{"name": s.name, "kind": s.kind, "reads": _stretch(mech, s.vector)}
                         for s in mech.sensors],
         }
+        spec = machine.axes[name]
+        for block in ("drive", "controller", "trajectory"):
+            value = getattr(spec, block)
+            axes[name][block] = value.model_dump(mode="json", exclude_none=True) if value is not None else None
     return {"valid": True, "name": machine.name, "axes": axes}
 
 
@@ -72,6 +76,10 @@ def print_check(source: str, payload: dict[str, Any]) -> None:
         for s in axis["sensors"]:
             table.add_row("sensor", s["name"], s["reads"], s["kind"])
         console.print(table)
+        blocks = [f"{block}: {axis[block]['type']}" for block in ("drive", "controller", "trajectory")
+                  if axis.get(block)]
+        if blocks:
+            console.print("  servo blocks: " + ", ".join(blocks))
 
 
 def print_modal(axis: str, result: "ModalResult") -> None:

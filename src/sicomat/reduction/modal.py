@@ -153,12 +153,19 @@ def split_block(block: StateBlock, select: np.ndarray) -> tuple[StateBlock, Stat
 def select_positions(T: np.ndarray, predicate) -> np.ndarray:
     """Boolean selection per diagonal position, consistent over the 2×2 blocks of complex pairs."""
     lam = schur_eigenvalues(T)
-    select = np.array([bool(predicate(v)) for v in lam], dtype=bool)
-    starts = np.flatnonzero(np.diag(T, -1) != 0.0) if T.shape[0] > 1 else np.array([], dtype=int)
-    pair = select[starts] | select[starts + 1]
-    select[starts] = pair
-    select[starts + 1] = pair
-    return select
+    return _pairs_together(T, np.array([bool(predicate(v)) for v in lam], dtype=bool))
+
+
+def _reciprocal_condition(T: np.ndarray, position: int) -> float:
+    """Reciprocal condition number of the real eigenvalue at ``position`` of a Schur form (``trsen``)."""
+    n = T.shape[0]
+    if n == 1:
+        return 1.0
+    select = np.zeros(n, dtype=np.int32)
+    select[position] = 1
+    out = lapack.dtrsen(select, T, np.eye(n), job="E", wantq=0, lwork=max(1, 2 * (n - 1)), liwork=1)
+    s, info = out[5], out[-1]
+    return float(s) if info == 0 and s > 0 else np.finfo(float).eps
 
 
 def nilpotent(T: np.ndarray) -> np.ndarray:
@@ -213,34 +220,47 @@ def spectral_split(plant: Plant, *, rigid_tol: float = RIGID_TOL, marginal: bool
         return SpectralSplit(empty, empty, D)
     lam = schur_eigenvalues(T)
     rho = max(float(np.max(np.abs(lam))), np.finfo(float).tiny)
-    zero = rigid_tol * rho
-    stable = _STABILITY_TOL * rho
-    is_zero = np.abs(lam) <= zero
-    companion = 0.0  # rigid-motion velocity poles −c/m: slow real poles, one per pole at 0 at most
-    if is_zero.any():
-        real = np.abs(lam.imag) <= 1e-12 * rho
+    is_zero = np.abs(lam) <= rigid_tol * rho
+    for i in np.flatnonzero(is_zero & (lam.imag == 0) & (lam.real < 0)):
+        # a slow real pole is a pole at 0 only if it is within its own round-off of 0: the velocity
+        # pole −c/m of a rigid motion with viscous guides is well conditioned and stays, while a
+        # rigid pole pushed off 0 by the round-off of K's row sums has a tiny reciprocal condition
+        if abs(lam[i]) > 1e3 * np.finfo(float).eps * np.linalg.norm(T) / _reciprocal_condition(T, i):
+            is_zero[i] = False
+    n_zero = int(is_zero.sum())
+    first = is_zero.copy()
+    if n_zero:  # one slow real companion per pole at 0 at most, slower than a tenth of any oscillation
+        real = lam.imag == 0
         osc = np.abs(lam[~real & ~is_zero])
-        slow = np.sort(np.abs(lam[real & ~is_zero & (lam.real < 0)]))
+        slow = np.flatnonzero(real & ~is_zero & (lam.real < 0))
+        slow = slow[np.argsort(np.abs(lam[slow]))][:n_zero]
         if osc.size:
-            slow = slow[slow <= 0.1 * osc.min()]
-        if slow.size:
-            companion = float(slow[:int(is_zero.sum())][-1])
-
-    def is_rigid(v: complex) -> bool:
-        return abs(v) <= zero
-
-    def is_first(v: complex) -> bool:
-        return (abs(v) <= zero or (v.imag == 0 and v.real < 0 and -v.real <= companion)
-                or (marginal and v.real >= -stable))
-
-    first, second = split_block(StateBlock(T, B, C), select_positions(T, is_first))
-    if first.n and all(is_rigid(v) for v in first.poles()):
-        first = StateBlock(nilpotent(first.A), first.B, first.C)
-    elif first.n:  # poles at 0 first inside the first block, made exactly 0
-        zeros, others = split_block(first, select_positions(first.A, is_rigid))
+            slow = slow[np.abs(lam[slow]) <= 0.1 * osc.min()]
+        first[slow] = True
+    if marginal:
+        first |= lam.real >= -_STABILITY_TOL * rho
+    block, second = split_block(StateBlock(T, B, C), _pairs_together(T, first))
+    if n_zero == block.n:
+        block = StateBlock(nilpotent(block.A), block.B, block.C)
+    elif n_zero:  # the poles at 0 first inside the first block (the smallest ones), made exactly 0
+        mags = np.abs(schur_eigenvalues(block.A))
+        smallest = np.zeros(block.n, dtype=bool)
+        smallest[np.argsort(mags, kind="stable")[:n_zero]] = True
+        zeros, others = split_block(block, _pairs_together(block.A, smallest))
         A = scipy.linalg.block_diag(nilpotent(zeros.A), others.A)
-        first = StateBlock(A, np.vstack([zeros.B, others.B]), np.hstack([zeros.C, others.C]))
-    return SpectralSplit(first, second, D)
+        block = StateBlock(A, np.vstack([zeros.B, others.B]), np.hstack([zeros.C, others.C]))
+    return SpectralSplit(block, second, D)
+
+
+def _pairs_together(T: np.ndarray, select: np.ndarray) -> np.ndarray:
+    """The selection extended so that both positions of each 2×2 block agree."""
+    select = np.array(select, dtype=bool)
+    if T.shape[0] > 1:
+        starts = np.flatnonzero(np.diag(T, -1) != 0.0)
+        pair = select[starts] | select[starts + 1]
+        select[starts] = pair
+        select[starts + 1] = pair
+    return select
 
 
 # --------------------------------------------------------------------------- modal truncation
