@@ -152,6 +152,7 @@ def test_modal_truncation_never_splits_a_complex_pair():
 
 def test_modal_truncation_matches_python_control_modal_form_and_modred():
     control = pytest.importorskip("control")
+    pytest.importorskip("slycot")  # control.modal_form block-diagonalises with slycot's mb03rd
     plant = plant_of(chain(10))
     order = 8
     msys, _ = control.modal_form(plant.to_control())
@@ -226,7 +227,8 @@ def test_balanced_truncation_keeps_rigid_mode_exactly():
     assert res.reduced.states[:2] == ("rigid.1", "rigid.2")
     # the double integrators cancel in the error, which stays under the bound down to low frequency
     m = res.metrics
-    assert m.omega[0] < 1.0 and np.all(m.error_gain <= res.error_bound * (1 + 1e-6))
+    lowest = np.min(np.abs(spectral_split(plant).flexible.poles()))
+    assert m.omega[0] <= lowest / 50 and np.all(m.error_gain <= res.error_bound * (1 + 1e-6))
 
 
 def test_balanced_is_invariant_to_state_renumbering():
@@ -565,6 +567,7 @@ def test_properties_dc_kept_and_bound_respected_on_random_chains(n, seed, ground
     mod = modal_truncation(plant, order)
     assert mod.metrics.dc_gain_relative_error is None or mod.metrics.dc_gain_relative_error < 1e-8
     bt = balanced_truncation(plant, order)
-    assert bt.hinf_error <= bt.error_bound * (1 + 1e-6) + 1e-12 * np.max(bt.hankel_singular_values)
+    round_off = 1e-9 * np.max(np.abs(bt.metrics.full_response))  # order == n: bound 0, error round-off
+    assert bt.hinf_error <= bt.error_bound * (1 + 1e-6) + round_off
     spa = balanced_truncation(plant, order, match_dc=True)
     assert spa.metrics.dc_gain_relative_error is None or spa.metrics.dc_gain_relative_error < 1e-7

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from .model import GROUND, LumpedSpec
+from .model import GROUND, LumpedSpec, resolve_stretch
 
 if TYPE_CHECKING:  # pragma: no cover
     from .modal import ModalResult
@@ -199,23 +199,26 @@ def build_mechanics(spec: "MechanicsSpec") -> Mechanics:
                 g[index[end]] += sign * ratio
         return g
 
+    kinds = {name: body.kind for name, body in lumped.bodies.items()}
     couplings = tuple(
-        Link(name, _frozen(stretch_vector(c.between, c.ratios)), lumped.stretch_kind(c),
+        Link(name, _frozen(stretch_vector(c.between, c.ratios)), resolve_stretch(c.stretch, c.between, kinds),
              stiffness=c.stiffness, damping=c.damping)
         for name, c in lumped.couplings.items())
     frictions = tuple(
-        Link(name, _frozen(stretch_vector(f.between, f.ratios)), lumped.stretch_kind(f),
+        Link(name, _frozen(stretch_vector(f.between, f.ratios)), resolve_stretch(f.stretch, f.between, kinds),
              damping=f.viscous, coulomb=f.coulomb, static=f.static if f.static is not None else f.coulomb)
         for name, f in lumped.frictions.items())
 
     mass = np.diag([body.value for body in lumped.bodies.values()])
-    stiffness = np.zeros((n, n))
-    damping = np.zeros((n, n))
-    for link in couplings:
-        stiffness += link.stiffness * np.outer(link.g, link.g)
-        damping += link.damping * np.outer(link.g, link.g)
-    for link in frictions:
-        damping += link.damping * np.outer(link.g, link.g)
+    G = np.array([link.g for link in couplings]).reshape(len(couplings), n)
+    Gf = np.array([link.g for link in frictions]).reshape(len(frictions), n)
+    k = np.array([link.stiffness for link in couplings])
+    c = np.array([link.damping for link in couplings])
+    v = np.array([link.damping for link in frictions])
+    stiffness = G.T @ (k[:, None] * G)          # Σ k g gᵀ
+    damping = G.T @ (c[:, None] * G) + Gf.T @ (v[:, None] * Gf)
+    stiffness = 0.5 * (stiffness + stiffness.T)  # exactly symmetric despite the product's rounding
+    damping = 0.5 * (damping + damping.T)
 
     actuators = []
     for name, act in lumped.actuators.items():

@@ -18,7 +18,7 @@ from .units import UNITS, parse_quantity
 
 __all__ = [
     "GROUND", "Body", "Coupling", "Friction", "Actuator", "Sensor",
-    "LumpedSpec", "ChainSpec", "BeltRackSpec", "MechanicsSpec", "Axis", "Machine",
+    "LumpedSpec", "ChainSpec", "BeltRackSpec", "MechanicsSpec", "Axis", "Machine", "resolve_stretch",
 ]
 
 GROUND = "ground"
@@ -256,7 +256,7 @@ class LumpedSpec(Spec):
 
     def stretch_kind(self, link: _Link) -> Kind:
         """Whether ``link`` stretches in translation or rotation (see :class:`Coupling`)."""
-        return _stretch_kind(link.stretch, link.between, {n: b.kind for n, b in self.bodies.items()})
+        return resolve_stretch(link.stretch, link.between, {n: b.kind for n, b in self.bodies.items()})
 
 
 def _has_inertia(body: Any) -> bool:
@@ -269,7 +269,9 @@ def _known(names: set[str]) -> str:
     return ", ".join(sorted(names) + [GROUND])
 
 
-def _stretch_kind(explicit: Any, between: Any, kinds: dict[str, str]) -> Kind:
+def resolve_stretch(explicit: Any, between: Any, kinds: dict[str, str]) -> Kind:
+    """Whether a link stretches in translation or rotation: ``explicit`` when given, else
+    translational if either end is a translational body (``kinds``: body name → kind)."""
     if explicit in ("translational", "rotational"):
         return explicit
     ends = [kinds.get(e) for e in between if e != GROUND and e in kinds]
@@ -282,7 +284,7 @@ def _parse_link(link: Any, kinds: dict[str, str], fields: dict[str, dict[str, st
     between = link.get("between")
     if not (isinstance(between, (list, tuple)) and len(between) == 2 and all(isinstance(e, str) for e in between)):
         return link  # the field validator reports the shape error
-    stretch = _stretch_kind(link.get("stretch"), between, kinds)
+    stretch = resolve_stretch(link.get("stretch"), between, kinds)
     out = dict(link)
     for key, units in fields.items():
         if key in out and out[key] is not None:
