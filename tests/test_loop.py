@@ -146,3 +146,18 @@ def test_bad_controller_inputs():
     loop = build_servo_loop(_machine(velocity_delay=40))
     with pytest.raises(ModelError, match="not shorter than the run"):
         simulate(loop, step_profile(1e-3), 0.005)
+
+
+def test_batch_of_variants_equals_single_runs():
+    from sicomat.simulate import simulate_batch
+
+    base = build_servo_loop(_machine(position_period=4 * H))
+    variants = [base.with_gains(Kp=base.Kp * f, Kv=base.Kv * g) for f, g in ((1.0, 1.0), (0.8, 1.1), (1.2, 0.9))]
+    profile = trapezoid_profile(2e-3, 0.05, 1.0)
+    batch = simulate_batch(variants, profile, 0.3)
+    for i, loop in enumerate(variants):
+        single = simulate(loop, profile, 0.3).metrics
+        assert batch.max_following_error[i] == pytest.approx(single.max_following_error, rel=1e-12)
+        assert batch.rms_following_error[i] == pytest.approx(single.rms_following_error, rel=1e-12)
+    assert not batch.diverged.any()
+    assert len(set(np.round(batch.max_following_error, 12))) == 3   # the variants really differ

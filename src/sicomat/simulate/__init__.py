@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 import time as _time
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -15,7 +16,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..loop import ServoLoop
     from ..setpoints import Profile
 
-__all__ = ["simulate", "loop_program"]
+__all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program"]
 
 
 def loop_program(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True):
@@ -83,3 +84,51 @@ def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinea
                       info={"wall_time_s": wall, "samples": n_steps, "step": loop.base_period,
                             "axis": loop.axis})
 
+
+
+@dataclass(frozen=True, eq=False)
+class BatchMetrics:
+    """Figures of each variant of a batch (arrays over the variants, metres) and their run time.
+
+    ``diverged`` flags the variants whose simulation blew up (their figures are NaN).
+    """
+
+    max_following_error: np.ndarray
+    rms_following_error: np.ndarray
+    final_error: np.ndarray
+    diverged: np.ndarray
+    wall_time_s: float
+
+    def to_pandas(self):
+        """One row per variant."""
+        import pandas as pd
+
+        return pd.DataFrame({"max_following_error": self.max_following_error,
+                             "rms_following_error": self.rms_following_error,
+                             "final_error": self.final_error, "diverged": self.diverged})
+
+
+def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
+                   nonlinear: bool = True) -> BatchMetrics:
+    """Simulate many variants of one loop (other gains, masses, stiffnesses, limits, ...) in one
+    compiled call and return each variant's following-error figures.
+
+    The variants must share the loop's structure (same blocks, sample periods, delays, filters
+    and friction links); only numbers may differ. Only the following error is recorded.
+    """
+    from .kernel import run_batch
+
+    programs = []
+    n_steps = 0
+    for loop in loops:
+        program, n_steps = loop_program(loop, profile, duration, nonlinear=nonlinear)
+        programs.append(program)
+    start = _time.perf_counter()
+    result = run_batch(programs, n_steps, record=["following_error"], on_divergence="flag")
+    wall = _time.perf_counter() - start
+    error = result.records[:, :, 0]
+    bad = result.diverged
+    with np.errstate(invalid="ignore"):
+        figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]
+    figures = [np.where(bad, np.nan, f) for f in figures]
+    return BatchMetrics(*figures, diverged=bad, wall_time_s=wall)
