@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .servo_spec import ControllerSpec
     from .simulate.program import HybridProgram
 
-__all__ = ["ServoLoop", "build_servo_loop", "servo_plant", "servo_program", "SetpointTable"]
+__all__ = ["ServoLoop", "build_servo_loop", "servo_plant", "servo_program", "SetpointTable", "derived_signals"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,24 +137,31 @@ def build_servo_loop(machine: "Machine", axis: str | None = None) -> ServoLoop:
 @dataclass(frozen=True, eq=False)
 class SetpointTable:
     """Setpoints sampled for the loop: position, velocity, acceleration at the position-loop period
-    (what the CNC's interpolator hands to the position loop) and the position at the base step (the
-    reference of the following error)."""
+    (what the CNC's interpolator hands to the position loop)."""
 
     position: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
-    fine_position: np.ndarray
 
 
 class _Slots:
+    """Signal slots by name; an alias names a slot that carries the same value as another one
+    (an identity copy costs no operation in the kernel)."""
+
     def __init__(self) -> None:
         self.names: list[str] = []
+        self.aliases: dict[str, int] = {}
 
     def __call__(self, name: str) -> int:
+        if name in self.aliases:
+            return self.aliases[name]
         if name in self.names:
             return self.names.index(name)
         self.names.append(name)
         return len(self.names) - 1
+
+    def alias(self, name: str, target: str) -> None:
+        self.aliases[name] = self(target)
 
 
 def servo_plant(loop: ServoLoop, *, disturbance: np.ndarray | None = None) -> "Plant":
@@ -221,12 +228,16 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     Np = loop.position_ratio
     s = _Slots()
 
-    # ---- continuous part: mechanics (q, q̇) + current state i, every named output
+    # ---- continuous part: mechanics (q, q̇) + current state i; only the outputs the controller reads
+    # are computed at every step, the others come from the recorded states afterwards
     plant = servo_plant(loop)
-    A, B, C = plant.A, plant.B[:, :1], plant.C
+    read = {f"sensor.{ctrl.position_sensor}", f"sensor.{ctrl.velocity_sensor or ctrl.position_sensor}",
+            "actuator.velocity"}
+    rows = [i for i, name in enumerate(plant.outputs) if name in read]
+    A, B, C = plant.A, plant.B[:, :1], plant.C[rows]
     nx = plant.n_states
     m_inv = 1.0 / np.diag(mech.mass)
-    output_slots = tuple(s(name) for name in plant.outputs)
+    output_slots = tuple(s(plant.outputs[i]) for i in rows)
 
     links = [f for f in mech.frictions if nonlinear and (f.coulomb > 0 or f.static > 0)]
     F = np.zeros((nx, len(links)))
@@ -244,82 +255,99 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
         return len(blocks) - 1
 
     def gain(src: str, dst: str, k: float, period: int) -> None:
-        ops.append(p.Sum(period=period, inputs=(s(src),), weights=(k,), output=s(dst)))
+        if abs(k - 1.0) <= 1e-12:
+            s.alias(dst, src)
+        else:
+            ops.append(p.Sum(period=period, inputs=(s(src),), weights=(k,), output=s(dst)))
 
     def quantize(src: str, dst: str, step: float | None, period: int) -> None:
         if nonlinear and step:
             ops.append(p.Quantize(period=period, input=s(src), output=s(dst), step=step, mode="floor"))
         else:
-            gain(src, dst, 1.0, period)
+            s.alias(dst, src)
 
     def delay(src: str, dst: str, samples: int, period: int) -> None:
         if samples:
             ops.append(p.Delay(period=period, input=s(src), output=s(dst), samples=samples))
         else:
-            gain(src, dst, 1.0, period)
+            s.alias(dst, src)
+
+    def combine(dst: str, terms: list[tuple[str, float]], period: int) -> None:
+        terms = [(name, w) for name, w in terms if w != 0.0]
+        if len(terms) == 1 and abs(terms[0][1] - 1.0) <= 1e-12:
+            s.alias(dst, terms[0][0])
+        else:
+            ops.append(p.Sum(period=period, inputs=tuple(s(n) for n, _ in terms),
+                             weights=tuple(w for _, w in terms), output=s(dst)))
+
+    pos_sensor = mech.sensor(ctrl.position_sensor)
+    vel_sensor = mech.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
+    # ---- sampling at the velocity period (a sensor shared by both loops is sampled once)
+    if vel_sensor.kind == "position":
+        quantize(f"sensor.{vel_sensor.name}", "velocity.sampled", vel_sensor.step, 1)
 
     # ---- position loop (period Np): setpoints, sampled feedback, P law, computation delay
-    pos_sensor = mech.sensor(ctrl.position_sensor)
     for column, name in enumerate(("setpoint.position", "setpoint.velocity", "setpoint.acceleration")):
         ops.append(p.Setpoint(period=Np, column=column, output=s(name)))
-    quantize(f"sensor.{pos_sensor.name}", "position.sampled", pos_sensor.step, Np)
-    gain("position.sampled", "position.measured", 1.0 / loop.position_gain, Np)
-    ops.append(p.Sum(period=Np, inputs=(s("setpoint.position"), s("position.measured")), weights=(1.0, -1.0),
-                     output=s("position.error")))
-    gain("position.error", "position.output", loop.Kv, Np)
+    if vel_sensor.name == pos_sensor.name and vel_sensor.kind == "position":
+        s.alias("position.sampled", "velocity.sampled")
+    else:
+        quantize(f"sensor.{pos_sensor.name}", "position.sampled", pos_sensor.step, Np)
+    combine("position.output", [("setpoint.position", loop.Kv), ("position.sampled", -loop.Kv / loop.position_gain)],
+            Np)
     delay("position.output", "velocity.command_fb", ctrl.position_delay, Np)
 
-    # ---- velocity loop (every base step)
+    # ---- velocity loop (every base step), in current units from the controller's output on
     ff_samples = int(round(ctrl.feedforward_delay / h))
-    delay("setpoint.velocity", "feedforward.velocity", ff_samples, 1)
-    delay("setpoint.acceleration", "feedforward.acceleration", ff_samples, 1)
-    ops.append(p.Sum(inputs=(s("velocity.command_fb"), s("feedforward.velocity")),
-                     weights=(1.0, ctrl.velocity_feedforward), output=s("velocity.command")))
-    vel_sensor = mech.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
+    if ctrl.velocity_feedforward:
+        delay("setpoint.velocity", "feedforward.velocity", ff_samples, 1)
+    if ctrl.acceleration_feedforward:
+        delay("setpoint.acceleration", "feedforward.acceleration", ff_samples, 1)
+    combine("velocity.command", [("velocity.command_fb", 1.0), ("feedforward.velocity", ctrl.velocity_feedforward)], 1)
     if vel_sensor.kind == "velocity":
         gain(f"sensor.{vel_sensor.name}", "velocity.raw", 1.0 / loop.velocity_gain, 1)
     else:
-        quantize(f"sensor.{vel_sensor.name}", "velocity.sampled", vel_sensor.step, 1)
-        diff = block(difference_block(h), [s("velocity.sampled")], [s("velocity.differenced")], 1)
-        ops += [p.LinearOutput(block=diff), p.LinearUpdate(block=diff)]
-        gain("velocity.differenced", "velocity.raw", 1.0 / loop.velocity_gain, 1)
+        diff = difference_block(h)
+        diff = DiscreteSS(diff.A, diff.B, diff.C / loop.velocity_gain, diff.D / loop.velocity_gain)
+        blk = block(diff, [s("velocity.sampled")], [s("velocity.raw")], 1)
+        ops += [p.LinearOutput(block=blk), p.LinearUpdate(block=blk)]
     if ctrl.velocity_filter is not None:
         flt = block(_filter(ctrl.velocity_filter, h, "controller.velocity_filter"), [s("velocity.raw")],
                     [s("velocity.measured")], 1)
         ops += [p.LinearOutput(block=flt), p.LinearUpdate(block=flt)]
     else:
-        gain("velocity.raw", "velocity.measured", 1.0, 1)
-    ops.append(p.Sum(inputs=(s("velocity.command"), s("velocity.measured")), weights=(1.0, -1.0),
-                     output=s("velocity.error")))
+        s.alias("velocity.measured", "velocity.raw")
+    combine("velocity.error", [("velocity.command", 1.0), ("velocity.measured", -1.0)], 1)
 
     limited = nonlinear and (np.isfinite(drv.i_peak) or np.isfinite(drv.u_max))
     if limited:
         ops.append(p.CurrentLimit(speed=s("actuator.velocity"), lower=s("current.lower"), upper=s("current.upper"),
                                   i_peak=drv.i_peak, u_max=drv.u_max, resistance=drv.resistance, ke=drv.ke,
                                   wl=drv.wl))
-        gain("current.lower", "effort.lower", drv.kt, 1)
-        gain("current.upper", "effort.upper", drv.kt, 1)
     aw = ctrl.anti_windup if limited else "none"
     tracking = (ctrl.tracking_time or loop.Ti) if aw == "back-calculation" else None
     law = velocity_law(ctrl.type, loop.Kp, loop.Ti, h, tracking)
+    # the law's state stays in effort units; its output is turned into current, its excess input back
+    law = DiscreteSS(law.A, law.B * np.array([[1.0, 1.0, drv.kt, 1.0]]), law.C / drv.kt, law.D / drv.kt)
     gated = "velocity.error_gated" if aw == "clamping" else "velocity.error"
-    pi = block(law, [s("velocity.error"), s(gated), s("effort.excess"), s("velocity.measured")],
-               [s("controller.feedback")], 1)
+    pi = block(law, [s("velocity.error"), s(gated), s("current.excess"), s("velocity.measured")],
+               [s("current.feedback")], 1)
     ops.append(p.LinearOutput(block=pi))
-    ops.append(p.Sum(inputs=(s("controller.feedback"), s("feedforward.acceleration")),
-                     weights=(1.0, ctrl.acceleration_feedforward * loop.m_rigid), output=s("effort.unsaturated")))
+    combine("current.unsaturated", [("current.feedback", 1.0),
+                                    ("feedforward.acceleration", ctrl.acceleration_feedforward * loop.m_rigid / drv.kt)],
+            1)
     if limited:
-        ops.append(p.Saturate(input=s("effort.unsaturated"), output=s("effort.command"),
-                              lower_slot=s("effort.lower"), upper_slot=s("effort.upper")))
+        ops.append(p.Saturate(input=s("current.unsaturated"), output=s("current.command"),
+                              lower_slot=s("current.lower"), upper_slot=s("current.upper")))
+        if aw == "back-calculation":
+            combine("current.excess", [("current.command", 1.0), ("current.unsaturated", -1.0)], 1)
     else:
-        gain("effort.unsaturated", "effort.command", 1.0, 1)
-    ops.append(p.Sum(inputs=(s("effort.command"), s("effort.unsaturated")), weights=(1.0, -1.0),
-                     output=s("effort.excess")))
+        s.alias("current.command", "current.unsaturated")
     if aw == "clamping":
-        ops.append(p.ClampGate(input=s("velocity.error"), unsaturated=s("effort.unsaturated"),
-                               saturated=s("effort.command"), output=s(gated)))
+        ops.append(p.ClampGate(input=s("velocity.error"), unsaturated=s("current.unsaturated"),
+                               saturated=s("current.command"), output=s(gated)))
     ops.append(p.LinearUpdate(block=pi))
-    gain("effort.command", "current.reference", 1.0 / drv.kt, 1)
+    s.alias("current.reference", "current.command")
     signal = "current.reference"
     for i, spec in enumerate(ctrl.current_filters):
         out = f"current.filter{i + 1}"
@@ -327,23 +355,16 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
         ops += [p.LinearOutput(block=flt), p.LinearUpdate(block=flt)]
         signal = out
     delay(signal, "current.delayed", ctrl.velocity_delay, 1)
-    if limited:
+    if limited and (ctrl.current_filters or ctrl.velocity_delay):
         ops.append(p.Saturate(input=s("current.delayed"), output=s("current.limited"),
                               lower_slot=s("current.lower"), upper_slot=s("current.upper")))
     else:
-        gain("current.delayed", "current.limited", 1.0, 1)
+        s.alias("current.limited", "current.delayed")
     if nonlinear and ctrl.command_bits and np.isfinite(drv.i_peak):
         ops.append(p.Quantize(input=s("current.limited"), output=s("current.applied"),
                               step=2.0 * drv.i_peak / 2 ** ctrl.command_bits, mode="round"))
     else:
-        gain("current.limited", "current.applied", 1.0, 1)
-
-    # ---- following error against the setpoint at the base step
-    ops.append(p.Setpoint(column=3, output=s("setpoint.fine")))
-    ops.append(p.Sum(inputs=(s("setpoint.fine"), s(f"sensor.{pos_sensor.name}")),
-                     weights=(1.0, -1.0 / loop.position_gain), output=s("following_error")))
-    ops.append(p.Sum(inputs=(s("setpoint.fine"), s("tool.position")), weights=(1.0, -1.0),
-                     output=s("tool_error")))
+        s.alias("current.applied", "current.limited")
 
     table = _table(setpoints)
     continuous = p.ContinuousPart(
@@ -352,7 +373,26 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
         x0=np.zeros(nx), input_slots=(s("current.applied"),), output_slots=output_slots,
         friction_slots=friction_slots)
     return p.HybridProgram(step=h, slot_names=tuple(s.names), continuous=continuous, blocks=tuple(blocks),
-                           ops=tuple(ops), table=table, record=tuple(range(len(s.names))))
+                           ops=tuple(ops), table=table, record=tuple(range(len(s.names))),
+                           aliases=dict(s.aliases))
+
+
+def derived_signals(loop: ServoLoop, signals: dict[str, np.ndarray], fine_setpoint: np.ndarray,
+                    states: np.ndarray) -> dict[str, np.ndarray]:
+    """Signals computed after a run rather than at every step: every output of the continuous part
+    (from the states, shape ``(n_steps, nx)``), the setpoint at the base step and the following
+    errors against it, the measured position and position error, the effort command."""
+    plant = servo_plant(loop)
+    outputs = states @ plant.C.T
+    out = {name: outputs[:, i] for i, name in enumerate(plant.outputs)}
+    position = out[f"sensor.{loop.controller.position_sensor}"] / loop.position_gain
+    out.update({"setpoint.fine": fine_setpoint,
+                "following_error": fine_setpoint - position,
+                "tool_error": fine_setpoint - out["tool.position"],
+                "effort.command": loop.drive.kt * signals["current.command"],
+                "position.measured": signals["position.sampled"] / loop.position_gain})
+    out["position.error"] = signals["setpoint.position"] - out["position.measured"]
+    return out
 
 
 def _filter(spec, period: float, path: str) -> DiscreteSS:
@@ -363,9 +403,9 @@ def _filter(spec, period: float, path: str) -> DiscreteSS:
 
 
 def _table(setpoints: SetpointTable) -> np.ndarray:
-    columns = [setpoints.position, setpoints.velocity, setpoints.acceleration, setpoints.fine_position]
+    columns = [setpoints.position, setpoints.velocity, setpoints.acceleration]
     length = max(len(c) for c in columns)
-    table = np.empty((4, length))
+    table = np.empty((3, length))
     for i, c in enumerate(columns):
         table[i, : len(c)] = c
         table[i, len(c):] = c[-1]

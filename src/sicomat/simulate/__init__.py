@@ -36,11 +36,9 @@ def loop_program(loop: "ServoLoop", profile: "Profile", duration: float, *, nonl
             raise ModelError(f"the delay ({delay:g} s) is not shorter than the run ({duration:g} s)",
                              path=f"axes.{loop.axis}.controller.{key}", value=getattr(ctrl, key))
     Np = loop.position_ratio
-    t_fine = np.arange(n_steps) * h
     t_pos = np.arange(-(-n_steps // Np)) * Np * h
     position, velocity, acceleration = profile.evaluate(t_pos)
-    fine, _, _ = profile.evaluate(t_fine)
-    table = SetpointTable(position, velocity, acceleration, fine)
+    table = SetpointTable(position, velocity, acceleration)
     return servo_program(loop, table, nonlinear=nonlinear), n_steps
 
 
@@ -77,13 +75,25 @@ def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinea
     start = _time.perf_counter()
     result = run(program, n_steps)
     wall = _time.perf_counter() - start
-    signals = {name: result.records[:, i] for i, name in enumerate(program.slot_names)}
+    signals = named_signals(loop, program, result.records, profile.evaluate(result.time)[0], result.states)
     actual = signals["setpoint.fine"] - signals["following_error"]
     metrics = step_metrics(result.time, signals["setpoint.fine"], actual, profile.distance, start=profile.breaks[0])
     return TimeSeries(time=result.time, signals=signals, metrics=metrics,
                       info={"wall_time_s": wall, "samples": n_steps, "step": loop.base_period,
                             "axis": loop.axis})
 
+
+
+def named_signals(loop: "ServoLoop", program, records: np.ndarray, fine_setpoint: np.ndarray,
+                  states: np.ndarray) -> dict[str, np.ndarray]:
+    """Every signal of a run by name: the recorded slots, their aliases and the derived signals."""
+    from ..loop import derived_signals
+
+    signals = {name: records[:, i] for i, name in enumerate(program.slot_names)}
+    for name, index in program.aliases.items():
+        signals[name] = records[:, index]
+    derived = derived_signals(loop, signals, fine_setpoint, states)
+    return {**signals, **{name: value for name, value in derived.items() if name not in signals}}
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,10 +133,15 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: f
     for loop in loops:
         program, n_steps = loop_program(loop, profile, duration, nonlinear=nonlinear)
         programs.append(program)
+    sensors = [f"sensor.{loop.controller.position_sensor}" for loop in loops]
+    if len(set(sensors)) != 1:
+        raise ModelError("the variants of a batch must share their position sensor", path="controller.position_sensor")
     start = _time.perf_counter()
-    result = run_batch(programs, n_steps, record=["following_error"], on_divergence="flag")
+    result = run_batch(programs, n_steps, record=[sensors[0]], on_divergence="flag")
     wall = _time.perf_counter() - start
-    error = result.records[:, :, 0]
+    fine = profile.evaluate(result.time)[0]
+    gains = np.array([loop.position_gain for loop in loops])
+    error = fine[None, :] - result.records[:, :, 0] / gains[:, None]
     bad = result.diverged
     with np.errstate(invalid="ignore"):
         figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]

@@ -188,6 +188,8 @@ class HybridProgram:
         Setpoint samples read by :class:`Setpoint` ops.
     record : tuple of int
         Slots stored at every base step.
+    aliases : dict
+        Other names of slots (signals that are identity copies of others); the kernel ignores them.
     """
 
     step: float
@@ -197,6 +199,7 @@ class HybridProgram:
     ops: tuple[Op, ...] = ()
     table: np.ndarray = field(default_factory=lambda: np.zeros((0, 1)))
     record: tuple[int, ...] = ()
+    aliases: dict[str, int] = field(default_factory=dict)
 
     @property
     def n_slots(self) -> int:
