@@ -202,3 +202,28 @@ def test_margins_and_bode_json(tmp_path):
     assert result.exit_code == 2 and "unknown loop" in result.stderr
     result = run("tune", P5M4S, "--velocity-crossover", "1e9")
     assert result.exit_code == 2 and "Nyquist" in result.stderr
+
+
+def test_step_command_is_the_manual_time_approach(tmp_path):
+    from sicomat.loop import build_servo_loop
+    from sicomat.looptf import LoopAnalysis
+    from sicomat.tuning_time import velocity_step
+
+    result = run("step", P5M4S, "--loop", "velocity", "--Kp", "120", "--Ti", "0.02", "--json",
+                 "--plot", str(tmp_path / "step.png"))
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    loop = build_servo_loop(sicomat_load(P5M4S))
+    expected = velocity_step(LoopAnalysis.of(loop), 120 * loop.m_rigid, 0.02)
+    assert payload["overshoot_percent"] == pytest.approx(expected.overshoot_percent, rel=1e-9)
+    assert payload["Kp"] == pytest.approx(120.0)
+    # a larger proportional gain (same Ti) gives more overshoot: the handle the time approach turns
+    higher = json.loads(run("step", P5M4S, "--Kp", "400", "--Ti", "0.02", "--json").stdout)
+    assert higher["overshoot_percent"] > payload["overshoot_percent"]
+    assert run("step", P5M4S, "--loop", "torque").exit_code == 2
+
+
+def sicomat_load(path):
+    from sicomat import load_model
+
+    return load_model(path)

@@ -11,7 +11,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from .modal import ModalResult
 
-__all__ = ["plot_modes", "plot_timeseries", "plot_path_run", "save_figure"]
+__all__ = ["plot_modes", "plot_timeseries", "plot_path_run", "plot_step", "save_figure"]
 
 
 def _figure(**kwargs) -> "Figure":
@@ -101,6 +101,19 @@ def plot_path_run(run, magnification: float = 1.0) -> "Figure":
     ax2.set_ylabel("contour error (µm)")
     ax2.grid(True, alpha=0.3)
     fig.suptitle(f"max contour error {run.max_contour_error * 1e6:.3g} µm", fontsize=10)
+    return fig
+
+
+def plot_step(response, title: str = "step response") -> "Figure":
+    """A step response with its overshoot and rise time in the title."""
+    fig = _figure(figsize=(7, 3.5), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(response.time * 1e3, response.response, linewidth=1.0)
+    ax.set_xlabel("time (ms)")
+    ax.set_ylabel("response to a unit step")
+    ax.grid(True, alpha=0.3)
+    rise = "-" if response.rise_time is None else f"{response.rise_time * 1e3:.3g} ms"
+    ax.set_title(f"{title}: overshoot {response.overshoot_percent:.3g} %, rise time {rise}", fontsize=10)
     return fig
 
 

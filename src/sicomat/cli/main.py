@@ -333,6 +333,51 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             print_reduction(payload)
 
 
+@app.command()
+def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
+         loop: str = typer.Option("velocity", "--loop", help="velocity or position"),
+         kp: Optional[float] = typer.Option(None, "--Kp", help="Velocity gain, normalised (1/s); default: the model's."),
+         ti: Optional[float] = typer.Option(None, "--Ti", help="Integral time (s); default: the model's."),
+         kv: Optional[float] = typer.Option(None, "--Kv", help="Position gain (1/s); default: the model's."),
+         duration: Optional[float] = typer.Option(None, "--duration", help="Length of the response (s)."),
+         set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
+    """One step response of the sampled velocity or position loop, with its overshoot and rise time:
+    the manual, step-by-step form of the time approach (paper III.B.3)."""
+    with guarded(model):
+        from ..errors import ModelError
+        from ..loop import build_servo_loop
+        from ..looptf import LoopAnalysis
+        from ..tuning_time import position_step, velocity_step
+
+        if loop not in ("velocity", "position"):
+            raise ModelError("expected 'velocity' or 'position'", source="--loop", value=loop)
+        for name, value in (("--Kp", kp), ("--Ti", ti), ("--Kv", kv), ("--duration", duration)):
+            if value is not None and not value > 0:
+                raise ModelError("expected a value > 0", source=name, value=value)
+        servo = build_servo_loop(load(model, set_), axis)
+        an = LoopAnalysis.of(servo)
+        Kp = servo.Kp if kp is None else kp * servo.m_rigid
+        Ti = servo.Ti if ti is None else ti
+        Kv = servo.Kv if kv is None else kv
+        response = velocity_step(an, Kp, Ti, duration) if loop == "velocity" else position_step(an, Kp, Ti, Kv, duration)
+        payload = {"axis": servo.axis, "loop": loop, "Kp": Kp / servo.m_rigid, "Kp_si": Kp, "Ti": Ti, "Kv": Kv,
+                   **response.to_dict()}
+        if plot is not None:
+            from ..plotting import plot_step, save_figure
+
+            save_figure(plot_step(response, f"{loop} loop step response"), plot)
+        if json_:
+            emit_json(payload)
+        else:
+            from rich.console import Console
+
+            rise = "-" if response.rise_time is None else f"{response.rise_time * 1e3:.3g} ms"
+            Console(highlight=False).print(
+                f"{loop} loop, Kp = {payload['Kp']:.4g} 1/s, Ti = {Ti:.4g} s, Kv = {Kv:.4g} 1/s: "
+                f"overshoot {response.overshoot_percent:.3g} %, rise time {rise}"
+                + ("" if response.stable else " [unstable]"))
+
+
 _LOOP_NAMES = ("plant", "velocity-open", "velocity-closed", "position-open", "position-closed",
                "following-error", "compliance", "disturbance")
 
