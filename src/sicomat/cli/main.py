@@ -185,7 +185,7 @@ def margins(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         else:
             from .tables import print_margins
 
-            print_margins(servo.axis, {"velocity loop": velocity, "position loop": position})
+            print_margins(servo.axis, {"velocity": velocity, "position": position})
 
 
 @app.command()

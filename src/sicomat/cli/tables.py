@@ -137,10 +137,11 @@ def print_margins(axis: str, margins: dict[str, Any], note: str | None = None) -
         console.print(note)
     if not margins:
         return
-    table = Table(title=f"axis {axis}: stability margins (worst over all crossovers)", title_justify="left")
+    table = Table(title=f"axis {axis}: stability margins, worst over all crossovers (DM: delay margin, "
+                        f"MM: modulus margin 1/max|S|, BW: closed-loop -3 dB, n: gain crossovers)",
+                  title_justify="left")
     table.add_column("loop")
-    for col in ("PM (deg)", "at (rad/s)", "GM (dB)", "at (rad/s)", "delay margin (ms)", "modulus margin",
-                "bandwidth (rad/s)", "crossovers"):
+    for col in ("PM °", "at rad/s", "GM dB", "at rad/s", "DM ms", "MM", "BW rad/s", "n"):
         table.add_column(col, justify="right")
 
     def f(x, fmt="{:.3g}"):
