@@ -161,3 +161,18 @@ def test_batch_of_variants_equals_single_runs():
         assert batch.rms_following_error[i] == pytest.approx(single.rms_following_error, rel=1e-12)
     assert not batch.diverged.any()
     assert len(set(np.round(batch.max_following_error, 12))) == 3   # the variants really differ
+
+
+def test_at_rest_the_integral_action_holds_the_stuck_friction():
+    """After a small move the axis sticks: the PI's integral action is the force the friction holds."""
+    from pathlib import Path
+
+    import sicomat
+
+    loop = build_servo_loop(sicomat.load_model(Path(__file__).resolve().parents[1] / "examples" / "paper_5m4s.toml"))
+    series = simulate(loop, step_profile(1e-4), 0.4)
+    friction = series["friction.motor"][-1]
+    assert abs(friction) <= 142.0 + 1e-9                       # within the static limit (static = Coulomb here)
+    # force balance on the rigid axis at rest: motor force + friction ≈ 0, the motor force being the integral
+    assert series["velocity.integral"][-1] == pytest.approx(-friction, rel=0.02)
+    assert abs(series["primary.v"][-1]) < 1e-9

@@ -328,10 +328,12 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     tracking = (ctrl.tracking_time or loop.Ti) if aw == "back-calculation" else None
     law = velocity_law(ctrl.type, loop.Kp, loop.Ti, h, tracking)
     # the law's state stays in effort units; its output is turned into current, its excess input back
-    law = DiscreteSS(law.A, law.B * np.array([[1.0, 1.0, drv.kt, 1.0]]), law.C / drv.kt, law.D / drv.kt)
+    # second output: the integral action itself (N or N·m), recorded as a controller state
+    law = DiscreteSS(law.A, law.B * np.array([[1.0, 1.0, drv.kt, 1.0]]),
+                     np.vstack([law.C / drv.kt, law.C]), np.vstack([law.D / drv.kt, np.zeros_like(law.D)]))
     gated = "velocity.error_gated" if aw == "clamping" else "velocity.error"
     pi = block(law, [s("velocity.error"), s(gated), s("current.excess"), s("velocity.measured")],
-               [s("current.feedback")], 1)
+               [s("current.feedback"), s("velocity.integral")], 1)
     ops.append(p.LinearOutput(block=pi))
     combine("current.unsaturated", [("current.feedback", 1.0),
                                     ("feedforward.acceleration", ctrl.acceleration_feedforward * loop.m_rigid / drv.kt)],

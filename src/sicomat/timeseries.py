@@ -76,10 +76,13 @@ def _first_crossing(time: np.ndarray, values: np.ndarray, level: float) -> float
 class TimeSeries:
     """Signals sampled at the simulator's base step, by name (SI units), with the run's metrics.
 
-    Signal names: ``setpoint.position``, ``position.measured``, ``following_error``, ``tool_error``,
-    ``velocity.command``, ``velocity.measured``, ``effort.command``, ``current.applied``,
-    ``drive.current``, every dof's ``<body>.x`` / ``<body>.v``, ``friction.<name>`` and the
-    controller's internal signals.
+    Signal names: ``setpoint.position`` / ``.velocity`` / ``.acceleration`` (as the position loop
+    samples them), ``setpoint.fine`` (at the base step), ``position.measured``, ``position.error``,
+    ``following_error``, ``tool_error``, ``velocity.command``, ``velocity.measured``,
+    ``velocity.error``, ``velocity.integral`` (the PI's integral action, N or N·m),
+    ``current.command`` / ``.applied`` / ``.lower`` / ``.upper``, ``effort.command``,
+    ``drive.current``, ``drive.effort``, ``tool.position``, every dof's ``<body>.x`` / ``<body>.v``
+    (or ``.theta`` / ``.omega``), ``sensor.<name>``, ``friction.<name>``.
     """
 
     time: np.ndarray
