@@ -6,6 +6,7 @@ from .modal import ModalResult, Mode, modal_analysis
 from .model import (Actuator, Axis, BeltRackSpec, Body, ChainSpec, Coupling, Friction, LumpedSpec,
                     Machine, Sensor)
 from .modelfile import dump_model, load_model, machine_from_dict, save_model, with_overrides
+from .margins import Margins, closed_loop, sensitivity, stability_margins
 from .plant import Plant, mechanics_plant
 
 __version__ = "0.1.0"
@@ -18,4 +19,5 @@ __all__ = [
     "Mechanics", "Dof", "build_mechanics",
     "Plant", "mechanics_plant",
     "ModalResult", "Mode", "modal_analysis",
+    "Margins", "stability_margins", "closed_loop", "sensitivity",
 ]

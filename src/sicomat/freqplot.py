@@ -80,8 +80,8 @@ def bode_figure(frfs: FrequencyResponse | Sequence[FrequencyResponse],
         f_n = 0.5 / period
         for ax in (ax_mag, ax_ph):
             ax.axvline(f_n, color="0.35", linestyle="--", linewidth=0.8)
-        ax_mag.annotate(f"Nyquist {f_n:.4g} Hz", (f_n, 1.0), xycoords=("data", "axes fraction"),
-                        xytext=(-3, -3), textcoords="offset points", ha="right", va="top",
+        ax_mag.annotate(f"Nyquist {f_n:.4g} Hz", (f_n, 0.0), xycoords=("data", "axes fraction"),
+                        xytext=(-3, 3), textcoords="offset points", ha="right", va="bottom",
                         fontsize=7, color="0.35", rotation=90)
     if any(m is not None for m in paired):
         ax_mag.axhline(0.0, color="black", linewidth=0.6, linestyle=":")
@@ -313,7 +313,7 @@ def _nichols_view(curves) -> tuple[tuple[float, float], tuple[float, float]]:
     seen = np.concatenate(seen) if seen else np.zeros(0)
     x_lo = min(float(seen.min()) if seen.size else -240.0, -240.0)
     x_hi = max(float(seen.max()) if seen.size else -120.0, -120.0)
-    pad = 0.03 * (x_hi - x_lo)
+    pad = max(0.03 * (x_hi - x_lo), 15.0)
     return (x_lo - pad, x_hi + pad), (y_lo, y_hi)
 
 

@@ -12,17 +12,18 @@ Conventions (one place; also in the docstrings below)
 * **Gain crossover**: ``|L| = 1``. **Phase crossover**: the unwrapped phase equals ``−180° + k·360°``
   (``L`` on the negative real axis).
 * **Phase margin** at a gain crossover: ``PM = 180° + ∠L`` wrapped into ``(−180°, 180°]``. The
-  reported one is the *worst*: the closest to the critical point, i.e. the smallest ``|PM|`` (the
-  negative one on a tie); with only positive margins it is simply the smallest (as python-control).
+  reported one is the *worst*: the closest to the critical point, i.e. the smallest ``|PM|`` (on a
+  tie the negative one, then the lowest frequency); with only positive margins it is simply the
+  smallest (as python-control).
 * **Gain margin** at a phase crossover: ``GM = −20 log10|L|`` (dB), positive when ``|L| < 1`` there.
-  The reported one is the smallest in absolute value (as python-control). ``inf`` with no phase
-  crossover on the grid.
+  The reported one is the smallest in absolute value (as python-control; ties as for the PM).
+  ``inf`` with no phase crossover on the grid.
 * **Delay margin** at a gain crossover: the smallest added delay that puts ``L`` on ``−1`` there,
   ``(PM mod 360°)·π/180 / ω_c`` (never negative, as MATLAB's ``allmargin``; it equals ``PM/ω_c``
   whenever ``PM ≥ 0``); the reported one is the minimum over all gain crossovers (``inf`` with none).
   For a sampled loop it is also given in sample periods.
-* **Modulus margin**: ``min |1 + L| = 1/max|S|`` over the grid (refined by a parabola between grid
-  points) and the frequency where it occurs.
+* **Modulus margin**: ``min |1 + L| = 1/max|S|`` over the grid (refined between the grid points
+  next to the minimum with the local cubics of Re L and Im L) and the frequency where it occurs.
 * **Bandwidth**: the first frequency where ``|T|`` drops below ``|T(ω_min)|/√2`` (−3.01 dB relative to
   the value at the lowest grid frequency, which is the static value for loops with integrators);
   ``inf`` when ``|T|`` stays above it over the whole grid, ``nan`` when ``T(ω_min) = 0``.
@@ -260,13 +261,13 @@ def stability_margins(frf: FrequencyResponse) -> Margins:
 
     # reported values
     if pm.size:
-        j = np.lexsort((pm, np.abs(pm)))[0]
+        j = _closest_to_zero(pm)
         pm_worst, wg_worst = float(pm[j]), float(wg[j])
         dm_min = float(dm.min())
     else:
         pm_worst, wg_worst, dm_min = np.inf, np.nan, np.inf
     if gm.size:
-        j = int(np.argmin(np.abs(gm)))
+        j = _closest_to_zero(gm)
         gm_rep, wp_rep = float(gm[j]), float(wp[j])
     else:
         gm_rep, wp_rep = np.inf, np.nan
@@ -439,6 +440,14 @@ def _dedupe(xs: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return xs[keep], values[keep]
 
 
+def _closest_to_zero(values: np.ndarray) -> int:
+    """Index of the smallest ``|value|``; ties (within rounding) go to the negative one, then to the
+    lowest frequency (``values`` are in ascending frequency)."""
+    size = np.abs(values)
+    tied = np.flatnonzero(size <= size.min() + 1e-9 * (1.0 + size.min()))
+    return int(tied[np.argmin(values[tied] >= 0)]) if np.isfinite(size.min()) else int(np.argmin(size))
+
+
 def _wrap180(angle_deg: np.ndarray) -> np.ndarray:
     """Wrap into ``(−180°, 180°]``."""
     return angle_deg - 360.0 * np.ceil((angle_deg - 180.0) / 360.0)
@@ -462,19 +471,25 @@ def _odd_extrapolation(w2: np.ndarray, y2: np.ndarray, w_n: float) -> float:
 
 def _modulus_margin(x: np.ndarray, omega: np.ndarray, resp: np.ndarray,
                     nyquist: float | None) -> tuple[float, float]:
+    """``min |1 + L|`` and where: the grid minimum, refined on its two neighbouring intervals by the
+    local cubics (in ln ω) of Re L and Im L sampled finely; at π/T for a sampled loop when lower."""
     distance = np.abs(1.0 + resp)
     j = int(np.argmin(distance))
     best, where = float(distance[j]), float(omega[j])
-    if 0 < j < distance.size - 1:
-        # parabola through three points in ln ω; keep its vertex if it lies between them and is lower
-        xs, ys = x[j - 1:j + 2], distance[j - 1:j + 2]
-        a, b, c = np.polyfit(xs - x[j], ys, 2)
-        if a > 0:
-            xv = -b / (2 * a)
-            yv = c - b * b / (4 * a)
-            if xs[0] - x[j] <= xv <= xs[2] - x[j] and 0.0 <= yv <= best:
-                best, where = float(yv), float(np.exp(x[j] + xv))
-    elif j == distance.size - 1 and nyquist is not None:
+    u = np.linspace(0.0, 1.0, 201)
+    for i in (j - 1, j):
+        if not 0 <= i < distance.size - 1:
+            continue
+        re, im = _cubic(x, resp.real, i), _cubic(x, resp.imag, i)
+        if re is None or im is None:
+            continue
+        d = np.abs(1.0 + np.polyval(re, u) + 1j * np.polyval(im, u))
+        k = int(np.argmin(d))
+        # an unresolved curve (cubic far below the grid values around it) is not trusted
+        around = distance[_stencil(distance.size, i)]
+        if d[k] < best and d[k] >= best - (around.max() - around.min()):
+            best, where = float(d[k]), float(np.exp(x[i] + u[k] * (x[i + 1] - x[i])))
+    if j == distance.size - 1 and nyquist is not None:
         at_nyquist = _even_extrapolation(omega[-2:], distance[-2:], nyquist)
         if 0.0 <= at_nyquist < best:
             best, where = at_nyquist, nyquist
