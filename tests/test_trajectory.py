@@ -138,7 +138,8 @@ def _lp_feasible(duration, d, v, a, j, n=160):
             rows_a.append(acc + dt * unit)
         unit = np.zeros(n)
         unit[k] = 1.0
-        p, vel, acc = p + h * vel + h * h / 2 * acc + h ** 3 / 6 * unit, vel + h * acc + h * h / 2 * unit, acc + h * unit
+        p, vel, acc = (p + h * vel + h * h / 2 * acc + h ** 3 / 6 * unit, vel + h * acc + h * h / 2 * unit,
+                       acc + h * unit)
     a_ub = np.vstack(rows_v + [-r for r in rows_v] + rows_a + [-r for r in rows_a])
     b_ub = np.concatenate([np.full(2 * len(rows_v), v), np.full(2 * len(rows_a), a)])
     res = scipy.optimize.linprog(np.zeros(n), A_ub=a_ub, b_ub=b_ub, A_eq=np.vstack([p, vel, acc]),

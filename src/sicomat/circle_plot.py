@@ -61,9 +61,9 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
     ax.set_rlim(1.0 + scale * (rings[0] - 0.5 * step), 1.0 + scale * (rings[-1] + 0.5 * step))
     ax.tick_params(axis="y", labelsize=7)
     for spike in result.reversal_spikes:
-        if not math.isnan(spike.height):
+        if not math.isnan(spike.height) and abs(spike.height) >= 0.05 * span:
             at = math.radians(spike.angle_deg)
-            ax.annotate(f"{spike.height * 1e6:.2g} µm", (at, float(np.interp(at, theta, rho, period=2 * math.pi))),
+            ax.annotate(f"{spike.height * 1e6:+.2g} µm", (at, float(np.interp(at, theta, rho, period=2 * math.pi))),
                         fontsize=7, color="tab:red")
     direction = "CW" if result.clockwise else "CCW"
     feed = f", F = {result.feed * 60e3:.4g} mm/min" if result.feed else ""
@@ -71,7 +71,7 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
                  f"circular deviation G = {result.circular_deviation * 1e6:.3g} µm, "
                  f"F min/max = {result.radial_deviation_min * 1e6:.3g} / {result.radial_deviation_max * 1e6:.3g} µm\n"
                  f"mean radial deviation {result.mean_radial_deviation * 1e6:.3g} µm, servo mismatch "
-                 f"{result.servo_mismatch * 1e6:.3g} µm at {math.degrees(result.servo_mismatch_angle):.3g}°",
+                 f"{result.servo_mismatch * 1e6:.3g} µm at {math.degrees(result.servo_mismatch_angle):.1f}°",
                  fontsize=9)
     ax.legend(loc="lower left", bbox_to_anchor=(-0.1, -0.12), fontsize=8)
     return fig

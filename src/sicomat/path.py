@@ -353,7 +353,8 @@ class PathSamples:
         return AxisSetpoint(self.path, self.profile, k, float(self.path.start[k]))
 
     def to_pandas(self) -> "pandas.DataFrame":
-        """A DataFrame indexed by time (s): ``s``, ``path.velocity``, ``<axis>.position`` / ``.velocity`` / ``.acceleration``."""
+        """A DataFrame indexed by time (s): ``s``, ``path.velocity``, ``path.acceleration`` and, per axis,
+        ``<axis>.position``, ``<axis>.velocity``, ``<axis>.acceleration``."""
         import pandas as pd
 
         cols = {"s": self.s, "path.velocity": self.path_velocity, "path.acceleration": self.path_acceleration}
