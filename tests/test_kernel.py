@@ -12,7 +12,7 @@ from scipy.optimize import brentq
 
 from sicomat.errors import ModelError, SicomatError
 from sicomat.simulate import program as p
-from sicomat.simulate.continuous import constrained_dynamics, discretize
+from sicomat.simulate.continuous import constrained_dynamics, discretize, discretize_many
 from sicomat.simulate.kernel import SimulationDiverged, bare_loop, run, run_batch
 
 
@@ -578,3 +578,92 @@ def test_bare_loop_matches_numpy():
     for _ in range(50):
         x = Phi @ x + Gamma @ (-K @ x)
     assert_allclose(bare_loop(Phi, Gamma, K, 50), x, rtol=1e-12, atol=1e-300)
+
+
+# ------------------------------------------------------------------- discretisation by squaring
+
+def test_every_level_matches_the_matrix_exponential():
+    # odd levels (and levels 0, 1) are squares of finer levels: each must still be expm's value
+    A, B, _ = _two_mass(k=4.0e5, c=20.0)                 # stiff: ||A h|| well above 1
+    cont = p.ContinuousPart(A=A, B=B, C=np.zeros((0, 4)), D=np.zeros((0, 1)), F=B.copy(),
+                            G=np.array([[0.0, 0.0, 1.0, 0.0]]), coulomb=np.array([1.0]),
+                            static=np.array([1.0]), x0=np.zeros(4), input_slots=(0,), output_slots=())
+    h, levels = 1e-3, 10
+    disc = discretize(cont, h, levels)
+    for mask in (0, 1):
+        d = constrained_dynamics(cont, mask)
+        M = np.zeros((6, 6))
+        M[:4, :4], M[:4, 4:] = d.A, d.B
+        for lev in range(levels + 1):
+            E = scipy.linalg.expm(M * h / 2 ** lev)
+            scale = np.abs(E[:4]).max()
+            assert_allclose(disc.Phi[mask, lev], E[:4, :4], rtol=0, atol=1e-14 * scale)
+            assert_allclose(disc.Gamma[mask, lev], E[:4, 4:], rtol=0, atol=1e-14 * scale)
+
+
+def test_equal_continuous_parts_are_discretised_once_with_the_same_result():
+    A, B, _ = _two_mass()
+    parts = [p.ContinuousPart(A=A * s, B=B, C=np.zeros((0, 4)), D=np.zeros((0, 1)), F=B.copy(),
+                              G=np.array([[0.0, 0.0, 1.0, 0.0]]), coulomb=np.array([1.0]),
+                              static=np.array([1.5]), x0=np.zeros(4), input_slots=(0,),
+                              output_slots=())
+             for s in (1.0, 1.1, 1.0, 1.0, 1.1)]
+    many = discretize_many(parts, 1e-3, 6)
+    for v, part in enumerate(parts):
+        one = discretize(part, 1e-3, 6)
+        for name in ("Phi", "Gamma", "Lx", "Lu", "Lf", "projection"):
+            assert_array_equal(getattr(many, name)[v], getattr(one, name))
+
+
+def test_batch_of_gain_variants_sharing_the_plant_equals_single_runs():
+    # controller variants of one plant (one discretisation for all) and another plant, with friction
+    h, n = 1e-3, 1500
+    _, _, C = _two_mass()
+    t = np.arange(n) * h
+    progs = []
+    for i, (m1, kp) in enumerate([(2.0, 60.0), (2.0, 75.0), (2.6, 75.0), (2.0, 90.0)]):
+        A, B, _ = _two_mass(m1=m1)
+        prog = _closed_loop_program(h, 0.01 * (t >= 0.01), _pid(h, kp=kp), A, B, C)
+        cont = prog.continuous
+        cont = p.ContinuousPart(A=cont.A, B=cont.B, C=cont.C, D=cont.D,
+                                F=np.array([[0.0], [0.0], [0.0], [1.0]]),
+                                G=np.array([[0.0, 0.0, 0.0, 1.0]]), coulomb=np.array([0.1]),
+                                static=np.array([0.15]), x0=cont.x0, input_slots=cont.input_slots,
+                                output_slots=cont.output_slots)
+        progs.append(p.HybridProgram(step=h, slot_names=prog.slot_names, continuous=cont,
+                                     blocks=prog.blocks, ops=prog.ops, table=prog.table,
+                                     record=prog.record))
+    batch = run_batch(progs, n)
+    for i, prog in enumerate(progs):
+        single = run(prog, n)
+        assert single.events > 0
+        assert_array_equal(batch.records[i], single.records)
+        assert_array_equal(batch.final_states[i], single.final_state)
+
+
+# ------------------------------------------------------------ zero coefficients of linear blocks
+
+def _block_program(B, D, inputs, table):
+    names = ("a", "b", "c", "y")
+    blk = p.LinearBlock(A=np.array([[0.5]]), B=np.atleast_2d(B), C=np.array([[2.0]]),
+                        D=np.atleast_2d(D), inputs=inputs, outputs=(3,), x0=np.array([0.25]))
+    ops = [p.Setpoint(column=i, output=i) for i in range(3)] + [p.LinearOutput(block=0),
+                                                                 p.LinearUpdate(block=0)]
+    return _ops_program(names, ops, table, (3,), blocks=(blk,))
+
+
+def test_zero_block_coefficients_are_left_out_exactly():
+    rng = np.random.default_rng(5)
+    table = rng.normal(size=(3, 40))
+    # inputs a, b, c with zero weights on b: the same results as the block reading a and c only
+    full = run(_block_program([[1.5, 0.0, -0.25]], [[0.0, 0.0, 3.0]], (0, 1, 2), table), 40)
+    dense = run(_block_program([[1.5, -0.25]], [[0.0, 3.0]], (0, 2), table), 40)
+    assert_array_equal(full.records, dense.records)
+    # a batch keeps a coefficient that is non-zero in any variant: each variant as if alone
+    progs = [_block_program([[1.5, 0.0, -0.25]], [[0.0, 0.0, 3.0]], (0, 1, 2), table),
+             _block_program([[1.5, 0.7, -0.25]], [[0.0, 0.0, 3.0]], (0, 1, 2), table),
+             _block_program([[1.5, 0.0, 0.0]], [[2.0, 0.0, 3.0]], (0, 1, 2), table)]
+    batch = run_batch(progs, 40)
+    for i, prog in enumerate(progs):
+        assert_array_equal(batch.records[i], run(prog, 40).records)
+

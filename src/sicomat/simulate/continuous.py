@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from numba import njit
 
 from sicomat.errors import ModelError
 from sicomat.simulate.program import ContinuousPart
@@ -129,27 +130,88 @@ def _matrices(part: ContinuousPart, links: np.ndarray | None = None) -> tuple[np
     return A, B, F, G
 
 
-def _constrained(A: np.ndarray, B: np.ndarray, F: np.ndarray, G: np.ndarray,
-                 mask: int) -> ConstrainedDynamics:
-    nx, nf = F.shape
-    nu = B.shape[1]
-    stuck = np.array([(mask >> j) & 1 == 1 for j in range(nf)], dtype=bool)
-    F_slip = F.copy()
-    F_slip[:, stuck] = 0.0
-    E = np.hstack([A, B, F_slip])                      # ẋ = E [x; u; f] without constraints
-    if stuck.any():
-        F_S, G_S = F[:, stuck], G[stuck, :]
-        W_pinv = np.linalg.pinv(G_S @ F_S)
-        P = np.eye(nx) - F_S @ W_pinv @ G_S
-        L_S = -W_pinv @ G_S @ E
-    else:
-        P = np.eye(nx)
-        L_S = np.zeros((0, E.shape[1]))
-    L = np.zeros((nf, E.shape[1]))
-    L[stuck, :] = L_S
-    PE = P @ E
-    return ConstrainedDynamics(mask=mask, A=PE[:, :nx], B=PE[:, nx:],
-                               Lx=L[:, :nx], Lu=L[:, nx:nx + nu], Lf=L[:, nx + nu:], projection=P)
+def _constrained_all(A: np.ndarray, B: np.ndarray, F: np.ndarray,
+                     G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The constrained dynamics of stacked variants (leading axis of ``A, B, F, G``) for every
+    stick configuration ``c`` (bit ``j`` set: link ``j`` stuck), see :class:`ConstrainedDynamics`.
+
+    Returns ``PE = P [A B F_slip]``, ``L = [Lx Lu Lf]`` and ``P``, with leading axes
+    ``(variant, configuration)``. The pseudo-inverses ``W⁺`` (``W = G_S F_S``, one stacked call per
+    configuration) come from numpy, the rest from :func:`_constrained_products`.
+    """
+    nv, nx, nf = F.shape
+    W_pinv = np.zeros((nv, 2 ** nf, nf, nf))
+    for c in range(1, 2 ** nf):
+        S = [j for j in range(nf) if (c >> j) & 1]
+        W_pinv[:, c, :len(S), :len(S)] = np.linalg.pinv(G[:, S, :] @ F[:, :, S])
+    return _constrained_products(A, B, F, G, W_pinv)
+
+
+@njit(cache=True)
+def _constrained_products(A, B, F, G, W_pinv):
+    """:func:`_constrained_all` given ``W⁺`` of every variant and configuration (top-left block).
+
+    Compiled loops: numpy costs ~100 µs per configuration in small array operations, more than
+    the matrix exponentials that follow.
+    """
+    nv, nx = A.shape[0], A.shape[1]
+    nu, nf = B.shape[2], F.shape[2]
+    nz = nx + nu + nf
+    nc = 1 << nf
+    PE = np.empty((nv, nc, nx, nz))
+    L = np.zeros((nv, nc, nf, nz))
+    P = np.empty((nv, nc, nx, nx))
+    E = np.empty((nx, nz))                         # ẋ = E [x; u; f] without constraints
+    rows = np.empty(nf, dtype=np.int64)
+    for v in range(nv):
+        for c in range(nc):
+            k = 0
+            for j in range(nf):
+                if (c >> j) & 1:
+                    rows[k] = j
+                    k += 1
+            for i in range(nx):                         # E = [A B F_slip]
+                for m in range(nx):
+                    E[i, m] = A[v, i, m]
+                for m in range(nu):
+                    E[i, nx + m] = B[v, i, m]
+                for j in range(nf):
+                    E[i, nx + nu + j] = 0.0 if (c >> j) & 1 else F[v, i, j]
+            # P = I - F_S W⁺ G_S;  L_S = -W⁺ G_S E
+            for i in range(nx):
+                for m in range(nx):
+                    s = 0.0
+                    for a in range(k):
+                        fw = 0.0
+                        for b in range(k):
+                            fw += F[v, i, rows[b]] * W_pinv[v, c, b, a]
+                        s += fw * G[v, rows[a], m]
+                    P[v, c, i, m] = (1.0 if i == m else 0.0) - s
+            for a in range(k):
+                for m in range(nz):
+                    s = 0.0
+                    for i in range(nx):
+                        wg = 0.0
+                        for b in range(k):
+                            wg += W_pinv[v, c, a, b] * G[v, rows[b], i]
+                        s += wg * E[i, m]
+                    L[v, c, rows[a], m] = -s
+            for i in range(nx):
+                for m in range(nz):
+                    s = 0.0
+                    for q in range(nx):
+                        s += P[v, c, i, q] * E[q, m]
+                    PE[v, c, i, m] = s
+    return PE, L, P
+
+
+def _stack(mats: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, ...]:
+    if len(mats) == 1:
+        return tuple(np.ascontiguousarray(a)[None] for a in mats[0])
+    shapes = {(m[0].shape, m[1].shape, m[2].shape) for m in mats}
+    if len(shapes) != 1:
+        raise ModelError(f"variants must share their continuous shapes, got {sorted(shapes)}")
+    return tuple(np.ascontiguousarray(np.stack(a)) for a in zip(*mats))
 
 
 def constrained_dynamics(part: ContinuousPart, mask: int) -> ConstrainedDynamics:
@@ -170,27 +232,46 @@ def constrained_dynamics(part: ContinuousPart, mask: int) -> ConstrainedDynamics
     ModelError
         Inconsistent shapes, or more than :data:`MAX_FRICTION_LINKS` links.
     """
-    A, B, F, G = _matrices(part)
-    if not 0 <= mask < 2 ** F.shape[1]:
-        raise ModelError(f"stick configuration must be in [0, {2 ** F.shape[1]})", value=mask)
-    return _constrained(A, B, F, G, mask)
+    A, B, F, G = _stack([_matrices(part)])
+    if not 0 <= mask < 2 ** F.shape[2]:
+        raise ModelError(f"stick configuration must be in [0, {2 ** F.shape[2]})", value=mask)
+    nx, nu = B.shape[1:]
+    PE, L, P = (a[0, mask] for a in _constrained_all(A, B, F, G))
+    return ConstrainedDynamics(mask=mask, A=PE[:, :nx], B=PE[:, nx:], Lx=L[:, :nx],
+                               Lu=L[:, nx:nx + nu], Lf=L[:, nx + nu:], projection=P)
 
 
-def _zoh(Ac: np.ndarray, Bc: np.ndarray, step: float, levels: int) -> tuple[np.ndarray, np.ndarray]:
-    """ZOH of stacked ``(..., nx, nx)``, ``(..., nx, nw)`` at ``step / 2**l``; adds a level axis."""
-    nx, nw = Ac.shape[-1], Bc.shape[-1]
-    n = nx + nw
-    lead = Ac.shape[:-2]
-    M = np.zeros(lead + (n, n))
-    M[..., :nx, :nx] = Ac
-    M[..., :nx, nx:] = Bc
-    dts = step / 2.0 ** np.arange(levels + 1)
-    Ml = M[..., None, :, :] * dts.reshape((1,) * len(lead) + (-1, 1, 1))
+def _direct_levels(levels: int) -> list[int]:
+    """The levels whose ZOH is a matrix exponential (the others are squares, see :func:`_zoh`)."""
+    return [lev for lev in range(min(2, levels), levels + 1) if lev % 2 == 0 or lev == levels]
+
+
+def _zoh(PE: np.ndarray, step: float, levels: int) -> np.ndarray:
+    """ZOH of stacked ``ẋ = PE [x; w]`` (shape ``(..., nx, nx + nw)``) at ``step / 2**l``.
+
+    Returns ``E`` of shape ``(..., levels + 1, n, n)``, ``n = nx + nw``:
+    ``E[..., l, :, :] = expm([[PE], [0]] step / 2**l) = [[Phi, Gamma], [0, I]]``. The even levels
+    from 2 on and the finest one are matrix exponentials; the others are the square of the next
+    finer level (``E(2t) = E(t)²``): an odd level one squaring from an exponential, levels 1 and 0
+    one and two squarings from level 2. That keeps the accuracy of an exponential at every level
+    (``expm`` itself scales and squares: for the 5M4S servo it computes level 0 as level 2 squared
+    twice), whereas a chain of squarings from the finest level loses about ten times that; it
+    costs less than half of an exponential per level.
+    """
+    nx, n = PE.shape[-2:]
+    lead = PE.shape[:-2]
+    direct = _direct_levels(levels)
+    E = np.empty(lead + (levels + 1, n, n))
     if n == 0:
-        E = Ml
-    else:
-        E = scipy.linalg.expm(Ml.reshape(-1, n, n)).reshape(Ml.shape)
-    return (np.ascontiguousarray(E[..., :nx, :nx]), np.ascontiguousarray(E[..., :nx, nx:]))
+        return E
+    dts = step / 2.0 ** np.array(direct)
+    M = np.zeros(lead + (len(direct), n, n))
+    M[..., :nx, :] = PE[..., None, :, :] * dts[:, None, None]
+    E[..., direct, :, :] = scipy.linalg.expm(M.reshape(-1, n, n)).reshape(M.shape)
+    for lev in range(levels - 1, -1, -1):
+        if lev not in direct:
+            E[..., lev, :, :] = E[..., lev + 1, :, :] @ E[..., lev + 1, :, :]
+    return E
 
 
 def _check_step(step: float, levels: int) -> None:
@@ -198,6 +279,59 @@ def _check_step(step: float, levels: int) -> None:
         raise ModelError("step must be a positive finite time (s)", value=step)
     if not 0 <= levels <= 30:
         raise ModelError("levels must be in 0..30", value=levels)
+
+
+def _distinct(parts: Sequence[ContinuousPart],
+              links: Sequence[int] | None) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
+    """The distinct ``A, B, F, G`` of ``parts`` (after ``links``) and the index of each part's."""
+    sel = None if links is None else np.asarray(links, dtype=int)
+    if len(parts) == 1:
+        return [_matrices(parts[0], sel)], np.zeros(1, dtype=np.int64)
+    mats: list[tuple[np.ndarray, ...]] = []
+    seen: dict[tuple, int] = {}
+    index = np.empty(len(parts), dtype=np.int64)
+    for i, part in enumerate(parts):
+        m = _matrices(part, sel)
+        key = tuple((a.shape, a.tobytes()) for a in m)
+        if key not in seen:
+            seen[key] = len(mats)
+            mats.append(m)
+        index[i] = seen[key]
+    return mats, index
+
+
+def _discretized(parts: Sequence[ContinuousPart], step: float, levels: int,
+                 links: Sequence[int] | None) -> tuple[np.ndarray, ...]:
+    """``E`` (see :func:`_zoh`), ``L = [Lx Lu Lf]`` and projections of the distinct parts (leading
+    axes ``(part, configuration)``), the index of each part's, and ``nx``.
+
+    Variants that differ only in their discrete part (gains, limits, setpoints) share one continuous
+    part: it is discretised once.
+    """
+    _check_step(step, levels)
+    if not parts:
+        raise ModelError("no continuous part to discretise")
+    mats, index = _distinct(parts, links)
+    A, B, F, G = _stack(mats)
+    PE, L, P = _constrained_all(A, B, F, G)
+    return _zoh(PE, float(step), int(levels)), L, P, index, A.shape[1]
+
+
+def _kernel_layout(parts: Sequence[ContinuousPart], step: float, levels: int,
+                   links: Sequence[int] | None) -> tuple[np.ndarray, ...]:
+    """The discretisation in the kernel's layout: ``[Phi Gamma]ᵀ`` (shape ``(n_distinct, 2**nf,
+    levels + 1, nx + nw, nx)``), ``[Lx Lu Lf]``, the projections, and for each part the index of its
+    discretisation (equal parts share one)."""
+    E, L, P, index, nx = _discretized(parts, step, levels, links)
+    return np.ascontiguousarray(np.swapaxes(E[..., :nx, :], -1, -2)), L, P, index
+
+
+def _discretization(E: np.ndarray, L: np.ndarray, P: np.ndarray, nx: int, step: float,
+                    levels: int) -> Discretization:
+    nu = E.shape[-1] - nx - L.shape[-2]
+    arrays = (E[..., :nx, :nx], E[..., :nx, nx:], L[..., :nx], L[..., nx:nx + nu],
+              L[..., nx + nu:], P)
+    return Discretization(float(step), int(levels), *(np.ascontiguousarray(a) for a in arrays))
 
 
 def discretize(part: ContinuousPart, step: float, levels: int = DEFAULT_LEVELS, *,
@@ -223,12 +357,15 @@ def discretize(part: ContinuousPart, step: float, levels: int = DEFAULT_LEVELS, 
     ModelError
         Inconsistent shapes, a bad step, or more than :data:`MAX_FRICTION_LINKS` friction links.
     """
-    return _discretize_arrays([part], step, levels, links, stacked=False)
+    E, L, P, _, nx = _discretized([part], step, levels, links)
+    return _discretization(E[0], L[0], P[0], nx, step, levels)
 
 
 def discretize_many(parts: Sequence[ContinuousPart], step: float, levels: int = DEFAULT_LEVELS, *,
                     links: Sequence[int] | None = None) -> Discretization:
     """:func:`discretize` for variants of the same shapes, in one batched matrix exponential.
+
+    Equal parts are discretised once.
 
     Parameters
     ----------
@@ -243,39 +380,5 @@ def discretize_many(parts: Sequence[ContinuousPart], step: float, levels: int = 
     Discretization
         With a leading variant axis on every array.
     """
-    return _discretize_arrays(list(parts), step, levels, links, stacked=True)
-
-
-def _discretize_arrays(parts: list[ContinuousPart], step: float, levels: int,
-                       links: Sequence[int] | None, stacked: bool) -> Discretization:
-    _check_step(step, levels)
-    if not parts:
-        raise ModelError("no continuous part to discretise")
-    sel = None if links is None else np.asarray(links, dtype=int)
-    mats = [_matrices(p, sel) for p in parts]
-    shapes = {(m[0].shape, m[1].shape, m[2].shape) for m in mats}
-    if len(shapes) != 1:
-        raise ModelError(f"variants must share their continuous shapes, got {sorted(shapes)}")
-    nv = len(parts)
-    A0, B0, F0, _ = mats[0]
-    nx, nu, nf = A0.shape[0], B0.shape[1], F0.shape[1]
-    nc = 2 ** nf
-    Ac = np.empty((nv, nc, nx, nx))
-    Bc = np.empty((nv, nc, nx, nu + nf))
-    Lx = np.empty((nv, nc, nf, nx))
-    Lu = np.empty((nv, nc, nf, nu))
-    Lf = np.empty((nv, nc, nf, nf))
-    Pr = np.empty((nv, nc, nx, nx))
-    for v, (A, B, F, G) in enumerate(mats):
-        if nf == 0:
-            Ac[v, 0], Bc[v, 0], Pr[v, 0] = A, B, np.eye(nx)
-            continue
-        for c in range(nc):
-            d = _constrained(A, B, F, G, c)
-            Ac[v, c], Bc[v, c], Lx[v, c], Lu[v, c], Lf[v, c], Pr[v, c] = (
-                d.A, d.B, d.Lx, d.Lu, d.Lf, d.projection)
-    Phi, Gamma = _zoh(Ac, Bc, float(step), int(levels))
-    arrays = (Phi, Gamma, Lx, Lu, Lf, Pr)
-    if not stacked:
-        arrays = tuple(a[0] for a in arrays)
-    return Discretization(float(step), int(levels), *(np.ascontiguousarray(a) for a in arrays))
+    E, L, P, index, nx = _discretized(list(parts), step, levels, links)
+    return _discretization(E[index], L[index], P[index], nx, step, levels)

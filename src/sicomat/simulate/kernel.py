@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 from sicomat.errors import ModelError, SicomatError
-from sicomat.simulate.continuous import DEFAULT_LEVELS, active_links, discretize_many
+from sicomat.simulate.continuous import DEFAULT_LEVELS, _kernel_layout, active_links
 from sicomat.simulate.program import (ClampGate, CurrentLimit, Delay, HybridProgram, LinearOutput,
                                       LinearUpdate, Quantize, Saturate, Setpoint, Sum)
 
@@ -29,11 +29,13 @@ MAX_EVENTS = 8
 
 # op codes
 _LIN_OUT, _LIN_UPD, _SUM, _SAT, _QUANT, _DELAY, _CURLIM, _CLAMP, _SETPOINT = range(9)
-_NIP = 4   # int params per op
-_NFP = 5   # float params per op
-_NBI = 10  # int params per block
+_NIP = 4   # int operands per op (see _lower_ops)
+_NFP = 5   # float operands per op
 
 _OK, _DIVERGED_STATE, _DIVERGED_RECORD = 0, 1, 2
+
+_u = np.uint64
+"""Index cast used in the kernel: numba skips its negative-index wrap-around for unsigned indices."""
 
 
 class SimulationDiverged(SicomatError, ArithmeticError):
@@ -122,7 +124,7 @@ class BatchResult:
 
 
 # --------------------------------------------------------------------------------------------
-# numba kernel
+# numba kernel (the small helpers of the step are inlined: a call per step costs ~10 %)
 # --------------------------------------------------------------------------------------------
 
 @njit(cache=True)
@@ -174,32 +176,53 @@ def bare_loop(Phi, Gamma, K, n_steps):
     return x
 
 
-@njit(cache=True)
-def _dot_row(M, c, r, z):
-    """``M[c, r, :] @ z``."""
-    s = 0.0
-    for j in range(z.shape[0]):
-        s += M[c, r, j] * z[j]
-    return s
-
-
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _propagate(PGT, c, lev, z, out, nx):
-    """``out[:nx] = PGT[c, lev].T @ z`` (``z = [x; u; f]``; column-wise, vectorisable)."""
+    """``out[:nx] = PGT[c, lev].T @ z`` (``z = [x; u; f]``; column-wise, vectorisable).
+
+    Each sum starts at 0.0 and adds the terms in column order (the first column is added in the
+    initialising loop, which spares a separate zeroing pass).
+    """
+    if z.shape[0] == 0:
+        return
+    z0 = z[0]
     for i in range(nx):
-        out[i] = 0.0
-    for j in range(z.shape[0]):
+        out[i] = 0.0 + PGT[c, lev, 0, i] * z0
+    for j in range(1, z.shape[0]):
         zj = z[j]
         for i in range(nx):
             out[i] += PGT[c, lev, j, i] * zj
 
 
-@njit(cache=True)
-def _has_event(zc, c, stuck, dirn, Lz, G, static, nx):
-    """A sliding link's velocity opposes its direction, or a stuck link's force exceeds static."""
+@njit(cache=True, inline='always')
+def _holding_force(Lz, c, j, z):
+    """Constraint force of link ``j`` in configuration ``c``: ``Lz[c, j] @ z``."""
+    s = 0.0
+    for i in range(z.shape[0]):
+        s += Lz[c, j, i] * z[i]
+    return s
+
+
+@njit(cache=True, inline='always')
+def _holding_forces(Lz, c, stuck, z, hold):
+    """``hold[j] = Lz[c, j] @ z`` for the stuck links ``j`` (the others are left alone)."""
     for j in range(stuck.shape[0]):
         if stuck[j]:
-            if abs(_dot_row(Lz, c, j, zc)) > static[j]:
+            hold[j] = _holding_force(Lz, c, j, z)
+
+
+@njit(cache=True, inline='always')
+def _has_event(zc, c, stuck, dirn, Lz, G, static, nx, hold):
+    """A sliding link's velocity opposes its direction, or a stuck link's force exceeds static.
+
+    The holding forces of the stuck links at ``zc`` are left in ``hold`` (all of them when there
+    is no event).
+    """
+    for j in range(stuck.shape[0]):
+        if stuck[j]:
+            lam = _holding_force(Lz, c, j, zc)
+            hold[j] = lam
+            if abs(lam) > static[j]:
                 return True
         else:
             v = 0.0
@@ -246,7 +269,7 @@ def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
         worst_lam = 0.0
         for j in range(nf):
             if (cand >> j) & 1:
-                lam = _dot_row(Lz, cand, j, zp)
+                lam = _holding_force(Lz, cand, j, zp)
                 excess = abs(lam) - static[j]
                 if excess > worst_excess:
                     worst, worst_excess, worst_lam = j, excess, lam
@@ -262,15 +285,9 @@ def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
 
 
 @njit(cache=True)
-def _acting_friction(z, c, stuck, Lz, nx, nu, out):
-    for j in range(stuck.shape[0]):
-        out[j] = _dot_row(Lz, c, j, z) if stuck[j] else z[nx + nu + j]
-
-
-@njit(cache=True)
 def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, coulomb, nx, nu,
-                         max_events):
-    """Advance ``z`` over one base step, locating stick/slip events by bisection.
+                         max_events, hold):
+    """Advance ``z`` over one base step whose full-step candidate ``zc`` contains an event.
 
     Sub-steps are binary fractions ``h / 2**l``: the largest fraction that fits in the rest of
     the step is tried; if it contains an event it is halved until the event is bracketed by one
@@ -280,27 +297,30 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
     nz = z.shape[0]
     levels = PGT.shape[1] - 1
     total = 1 << levels
-    for i in range(nx, nz):
-        zc[i] = z[i]
     pos = 0
     n_events = 0
+    first = True
     while pos < total:
         rem = total - pos
         lev = 0
         while (1 << (levels - lev)) > rem:
             lev += 1
-        _propagate(PGT, cfg, lev, z, zc, nx)
-        if n_events >= max_events or not _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx):
-            for i in range(nx):
-                z[i] = zc[i]
-            pos += 1 << (levels - lev)
-            continue
+        if first:
+            first = False      # the caller's candidate: the whole step from pos = 0, level 0
+        else:
+            _propagate(PGT, cfg, lev, z, zc, nx)
+            if (n_events >= max_events
+                    or not _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx, hold)):
+                for i in range(nx):
+                    z[i] = zc[i]
+                pos += 1 << (levels - lev)
+                continue
         # an event inside [pos, pos + 2^(levels-lev)): bisect down to one finest sub-step
         have = lev == levels
         while lev < levels:
             lev += 1
             _propagate(PGT, cfg, lev, z, zc, nx)
-            if _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx):
+            if _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx, hold):
                 have = lev == levels
             else:
                 for i in range(nx):
@@ -357,11 +377,17 @@ def _current_limit(w, i_peak, u_max, R, ke, wl):
 
 @njit(cache=True)
 def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
-              op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, blk_i, xb0, table, n_delay,
+              op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, table, n_delay,
               in_slots, out_slots, fr_slots, rec_slots, n_slots,
               PGT, Lz, Proj, out_ptr, out_col, out_val, G, coulomb, static, x0,
               rec_out, states_out, fric_out, stuck_out, x_final):
-    """Run ``n_steps`` base steps; returns ``(status, step)`` (status 0: completed)."""
+    """Run ``n_steps`` base steps; returns ``(status, step, events)`` (status 0: completed).
+
+    The op rows ``op_ip`` carry everything an op reads (slots, offsets into ``idx`` and
+    ``fdata``, block sizes; see :func:`_lower_ops`), so an op touches no other metadata.
+    Indices read from the arrays are cast to unsigned (``_u``) where they are used: numba then
+    omits its negative-index wrap-around, a fifth of the time of the ops.
+    """
     nx = x0.shape[0]
     nu = in_slots.shape[0]
     ny = out_slots.shape[0]     # rows of the sparse [C D] (out_ptr, out_col, out_val) over z
@@ -369,27 +395,33 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     nz = nx + nu + nf
     n_ops = op_code.shape[0]
     n_rec = rec_slots.shape[0]
+    rec_all = n_rec == n_slots      # every slot recorded in order: rows are copies of the slots
+    for i in range(n_rec):
+        rec_all = rec_all and rec_slots[i] == i
     n_cols = table.shape[0]
     last_col = table.shape[1] - 1
+    n_fr = fr_slots.shape[0]
 
     slots = np.zeros(n_slots)
     xb = xb0.copy()
     delay_buf = np.zeros(n_delay)
     count = np.zeros(n_ops, dtype=np.int64)     # executions (Setpoint) or ring position (Delay)
     wait = np.empty(n_ops, dtype=np.int64)
+    scratch_n = 1
     for o in range(n_ops):
         wait[o] = op_phase[o] % op_period[o]    # first k >= 0 with (k - phase) % period == 0
-    scratch_n = 1
-    for b in range(blk_i.shape[0]):
-        scratch_n = max(scratch_n, blk_i[b, 0], blk_i[b, 1], blk_i[b, 2])
-    ub = np.zeros(scratch_n)
+        if op_code[o] == _LIN_OUT or op_code[o] == _LIN_UPD:
+            scratch_n = max(scratch_n, op_ip[o, 0])
     tb = np.zeros(scratch_n)
     z = np.zeros(nz)           # [x; u; f]
     zc = np.zeros(nz)          # candidate [x+; u; f]
     zp = np.zeros(nz)
-    fr = np.zeros(nf)
     stuck = np.zeros(nf, dtype=np.bool_)
     dirn = np.ones(nf)
+    # holding forces of the stuck links at the current z, when hold_ok: each is computed once
+    # and reused by the friction slots, the breakaway test and the stored friction
+    hold = np.zeros(nf)
+    hold_ok = False
     for i in range(nx):
         z[i] = x0[i]
     # links at zero sliding velocity start stuck
@@ -417,7 +449,6 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     scale = 0.0
     for i in range(nx):
         scale = max(scale, abs(z[i]))
-    PGT0 = PGT[0, 0]
 
     status = 0
     k_bad = -1
@@ -429,13 +460,15 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
         for r in range(ny):
             s = 0.0
             for q in range(out_ptr[r], out_ptr[r + 1]):
-                s += out_val[q] * z[out_col[q]]
-            slots[out_slots[r]] = s
-        if nf > 0 and fr_slots.shape[0] > 0:
-            _acting_friction(z, cfg, stuck, Lz, nx, nu, fr)
+                s += out_val[_u(q)] * z[_u(out_col[_u(q)])]
+            slots[_u(out_slots[r])] = s
+        if n_fr > 0:
+            if not hold_ok:
+                _holding_forces(Lz, cfg, stuck, z, hold)
+                hold_ok = True
             for j in range(nf):
                 if fr_slots[j] >= 0:
-                    slots[fr_slots[j]] = fr[j]
+                    slots[_u(fr_slots[j])] = hold[j] if stuck[j] else z[nx + nu + j]
 
         # (2) the ops due at k, in list order (wait[o]: steps until op o is due)
         for o in range(n_ops):
@@ -444,97 +477,86 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                 continue
             wait[o] = op_period[o] - 1
             code = op_code[o]
-            if code == _SUM:
-                n = op_ip[o, 0]
-                io = op_ip[o, 1]
-                wo = op_ip[o, 3]
+            if code == _LIN_OUT or code == _LIN_UPD:
+                # rows of y = C xb + D u or of xb+ = A xb + B u (all before any is written)
+                n_rows, p = op_ip[o, 0], op_ip[o, 1]
+                for r in range(n_rows):
+                    f, ns, ni = idx[_u(p)], idx[_u(p + 1)], idx[_u(p + 2)]
+                    p += 3
+                    s = 0.0
+                    for q in range(ns):
+                        s += fdata[_u(f + q)] * xb[_u(idx[_u(p + q)])]
+                    for q in range(ns, ns + ni):
+                        s += fdata[_u(f + q)] * slots[_u(idx[_u(p + q)])]
+                    tb[r] = s
+                    p += ns + ni
+                if code == _LIN_OUT:
+                    oo = op_ip[o, 2]
+                    for r in range(n_rows):
+                        slots[_u(idx[_u(oo + r)])] = tb[r]
+                else:
+                    xo = op_ip[o, 2]
+                    for r in range(n_rows):
+                        xb[_u(xo + r)] = tb[r]
+            elif code == _SUM:
+                n, io, wo = op_ip[o, 0], op_ip[o, 1], op_ip[o, 3]
                 s = op_fp[o, 0]
                 for i in range(n):
-                    s += fdata[wo + i] * slots[idx[io + i]]
-                slots[op_ip[o, 2]] = s
-            elif code == _LIN_OUT or code == _LIN_UPD:
-                b = op_ip[o, 0]
-                nxb = blk_i[b, 0]
-                nin = blk_i[b, 1]
-                nout = blk_i[b, 2]
-                xo = blk_i[b, 9]
-                io = blk_i[b, 7]
-                for i in range(nin):
-                    ub[i] = slots[idx[io + i]]
-                if code == _LIN_OUT:
-                    co = blk_i[b, 5]
-                    do = blk_i[b, 6]
-                    for r in range(nout):
-                        s = 0.0
-                        for j in range(nxb):
-                            s += fdata[co + r * nxb + j] * xb[xo + j]
-                        for j in range(nin):
-                            s += fdata[do + r * nin + j] * ub[j]
-                        tb[r] = s
-                    oo = blk_i[b, 8]
-                    for r in range(nout):
-                        slots[idx[oo + r]] = tb[r]
-                else:
-                    ao = blk_i[b, 3]
-                    bo = blk_i[b, 4]
-                    for r in range(nxb):
-                        s = 0.0
-                        for j in range(nxb):
-                            s += fdata[ao + r * nxb + j] * xb[xo + j]
-                        for j in range(nin):
-                            s += fdata[bo + r * nin + j] * ub[j]
-                        tb[r] = s
-                    for r in range(nxb):
-                        xb[xo + r] = tb[r]
+                    s += fdata[_u(wo + i)] * slots[_u(idx[_u(io + i)])]
+                slots[_u(op_ip[o, 2])] = s
             elif code == _SAT:
-                v = slots[op_ip[o, 0]]
-                lo = slots[op_ip[o, 2]] if op_ip[o, 2] >= 0 else op_fp[o, 0]
-                hi = slots[op_ip[o, 3]] if op_ip[o, 3] >= 0 else op_fp[o, 1]
+                v = slots[_u(op_ip[o, 0])]
+                lo = slots[_u(op_ip[o, 2])] if op_ip[o, 2] >= 0 else op_fp[o, 0]
+                hi = slots[_u(op_ip[o, 3])] if op_ip[o, 3] >= 0 else op_fp[o, 1]
                 if v < lo:
                     v = lo
                 elif v > hi:
                     v = hi
-                slots[op_ip[o, 1]] = v
+                slots[_u(op_ip[o, 1])] = v
             elif code == _QUANT:
                 q = op_fp[o, 0]
-                v = slots[op_ip[o, 0]] / q
-                slots[op_ip[o, 1]] = q * (np.floor(v) if op_ip[o, 2] == 1 else np.rint(v))
+                v = slots[_u(op_ip[o, 0])] / q
+                slots[_u(op_ip[o, 1])] = q * (np.floor(v) if op_ip[o, 2] == 1 else np.rint(v))
             elif code == _DELAY:
                 n = op_ip[o, 2]
-                v = slots[op_ip[o, 0]]
+                v = slots[_u(op_ip[o, 0])]
                 if n == 0:
-                    slots[op_ip[o, 1]] = v
+                    slots[_u(op_ip[o, 1])] = v
                 else:
-                    p = op_ip[o, 3] + count[o]          # ring position
+                    p = _u(op_ip[o, 3] + count[o])      # ring position
                     old = delay_buf[p]
                     delay_buf[p] = v
-                    slots[op_ip[o, 1]] = old
+                    slots[_u(op_ip[o, 1])] = old
                     count[o] = count[o] + 1 if count[o] + 1 < n else 0
             elif code == _CURLIM:
-                lo, hi = _current_limit(slots[op_ip[o, 0]], op_fp[o, 0], op_fp[o, 1], op_fp[o, 2],
-                                        op_fp[o, 3], op_fp[o, 4])
-                slots[op_ip[o, 1]] = lo
-                slots[op_ip[o, 2]] = hi
+                lo, hi = _current_limit(slots[_u(op_ip[o, 0])], op_fp[o, 0], op_fp[o, 1],
+                                        op_fp[o, 2], op_fp[o, 3], op_fp[o, 4])
+                slots[_u(op_ip[o, 1])] = lo
+                slots[_u(op_ip[o, 2])] = hi
             elif code == _CLAMP:
-                e = slots[op_ip[o, 0]]
-                us = slots[op_ip[o, 1]]
-                if us != slots[op_ip[o, 2]] and e * us > 0.0:
-                    slots[op_ip[o, 3]] = 0.0
+                e = slots[_u(op_ip[o, 0])]
+                us = slots[_u(op_ip[o, 1])]
+                if us != slots[_u(op_ip[o, 2])] and e * us > 0.0:
+                    slots[_u(op_ip[o, 3])] = 0.0
                 else:
-                    slots[op_ip[o, 3]] = e
+                    slots[_u(op_ip[o, 3])] = e
             elif code == _SETPOINT:
                 col = op_ip[o, 0]
                 j = count[o] if count[o] < last_col else last_col
-                slots[op_ip[o, 1]] = table[col, j] if col < n_cols else 0.0
+                slots[_u(op_ip[o, 1])] = table[_u(col), _u(j)] if col < n_cols else 0.0
                 count[o] += 1
 
         # (3) latch the held input; a stuck link may break away at once
         for i in range(nu):
-            z[nx + i] = slots[in_slots[i]]
+            z[nx + i] = slots[_u(in_slots[i])]
+        hold_ok = cfg == 0          # no stuck link: nothing to hold
         if cfg != 0:
+            _holding_forces(Lz, cfg, stuck, z, hold)
+            hold_ok = True
             for j in range(nf):
-                if stuck[j] and abs(_dot_row(Lz, cfg, j, z)) > static[j]:
+                if stuck[j] and abs(hold[j]) > static[j]:
                     cfg = _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp)
+                    hold_ok = False
                     break
 
         # (4) records
@@ -544,50 +566,44 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
             rec_wait = rec_every - 1
             row += 1
             bad = False
-            for i in range(n_rec):
-                v = slots[rec_slots[i]]
-                rec_out[row, i] = v
-                if v != v:
-                    bad = True
+            if rec_all:
+                for i in range(n_rec):
+                    v = slots[i]
+                    rec_out[_u(row), i] = v
+                    bad |= v != v
+            else:
+                for i in range(n_rec):
+                    v = slots[_u(rec_slots[i])]
+                    rec_out[_u(row), i] = v
+                    bad |= v != v
             if store_full:
                 for i in range(nx):
                     states_out[k, i] = z[i]
                 if nf > 0:
-                    _acting_friction(z, cfg, stuck, Lz, nx, nu, fr)
+                    if not hold_ok:
+                        _holding_forces(Lz, cfg, stuck, z, hold)
+                        hold_ok = True
                     for j in range(nf):
-                        fric_out[k, j] = fr[j]
+                        fric_out[k, j] = hold[j] if stuck[j] else z[nx + nu + j]
                         stuck_out[k, j] = stuck[j]
             if bad:
                 status = _DIVERGED_RECORD
                 k_bad = k
                 break
 
-        # (5) advance the continuous state to t_{k+1}
-        if nf == 0:
-            for i in range(nx):
-                zc[i] = 0.0
-            for j in range(nz):
-                zj = z[j]
-                for i in range(nx):
-                    zc[i] += PGT0[j, i] * zj
+        # (5) advance the continuous state to t_{k+1}: the whole step, bisected if it holds an event
+        for i in range(nx, nz):
+            zc[i] = z[i]
+        _propagate(PGT, cfg, 0, z, zc, nx)
+        if nf > 0 and _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx, hold):
+            cfg, n_events = _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G,
+                                                 static, coulomb, nx, nu, max_events, hold)
+            total_events += n_events
+            hold_ok = False
+        else:
             for i in range(nx):
                 z[i] = zc[i]
-        else:
-            for i in range(nx, nz):
-                zc[i] = z[i]
-            for i in range(nx):
-                zc[i] = 0.0
-            for j in range(nz):
-                zj = z[j]
-                for i in range(nx):
-                    zc[i] += PGT[cfg, 0, j, i] * zj
-            if _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx):
-                cfg, n_events = _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G,
-                                                     static, coulomb, nx, nu, max_events)
-                total_events += n_events
-            else:
-                for i in range(nx):
-                    z[i] = zc[i]
+            hold_ok = True      # _has_event left the holding forces at zc, now z
 
         # divergence
         bad = False
@@ -612,20 +628,24 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
 
 @njit(cache=True)
 def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, warmup,
-                    op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, blk_i, xb0, table,
+                    op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, table,
                     n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots,
-                    PGT, Lz, Proj, out_ptr, out_col, out_val, G, coulomb, static, x0,
+                    PGT, Lz, Proj, cont, out_ptr, out_col, out_val, G, coulomb, static, x0,
                     rec_out, x_final, status, k_bad):
+    """:func:`_simulate` for every variant; variant ``v`` uses ``PGT[cont[v]]``,
+    ``Lz[cont[v]]``, ``Proj[cont[v]]`` (variants with the same continuous part share its
+    discretisation)."""
     nx = x0.shape[1]
     nf = coulomb.shape[1]
     states_dummy = np.zeros((1, nx))
     fric_dummy = np.zeros((1, nf))
     stuck_dummy = np.zeros((1, nf), dtype=np.bool_)
     for v in range(x0.shape[0]):
+        c = cont[v]
         st, kb, _ = _simulate(
             n_steps, rec_every, False, max_events, limit_abs, limit_factor, warmup,
-            op_code, op_period, op_phase, op_ip, op_fp[v], idx, fdata[v], blk_i, xb0[v], table[v],
-            n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots, PGT[v], Lz[v], Proj[v],
+            op_code, op_period, op_phase, op_ip, op_fp[v], idx, fdata[v], xb0[v], table[v],
+            n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots, PGT[c], Lz[c], Proj[c],
             out_ptr, out_col, out_val[v], G[v], coulomb[v], static[v], x0[v], rec_out[v],
             states_dummy, fric_dummy, stuck_dummy, x_final[v])
         status[v] = st
@@ -646,22 +666,226 @@ class _Lowered:
     links: np.ndarray
     n_links: int
 
+    def structure_key(self) -> tuple:
+        """The structure as one hashable value (equal keys: the variants can share a batch)."""
+        return tuple((a.shape, a.tobytes()) for a in self.struct.values())
 
-def _slot(value: int, n_slots: int, what: str) -> int:
+
+def _slot(value: int, n_slots: int, what: str, *args) -> int:
+    """``value`` as a slot index, checked; the message is ``what.format(*args)`` (formatted only
+    on error: lowering checks every slot)."""
     v = int(value)
     if not 0 <= v < n_slots:
-        raise ModelError(f"{what} must be a slot index in [0, {n_slots})", value=value)
+        raise ModelError(f"{what.format(*args)} must be a slot index in [0, {n_slots})", value=value)
     return v
 
 
-def _lower(program: HybridProgram, record: Sequence[int] | None = None) -> _Lowered:
+def _slots(values: Sequence[int], n_slots: int, what: str, *args) -> list[int]:
+    return [_slot(v, n_slots, what, *args) for v in values]
+
+
+class _Flat:
+    """Growing flat int (slot lists, sparse rows) and float (coefficients, weights) lists with
+    offsets (Python lists: the pieces are a few numbers each)."""
+
+    def __init__(self, n_slots: int) -> None:
+        self.n_slots = n_slots
+        self.idx: list[int] = []
+        self.floats: list[float] = []
+
+    @property
+    def f_len(self) -> int:
+        return len(self.floats)
+
+    def add_floats(self, values) -> int:
+        off = len(self.floats)
+        self.floats.extend(float(v) for v in values)
+        return off
+
+    def add_ints(self, values: Sequence[int], what: str, *args) -> int:
+        off = len(self.idx)
+        self.idx.extend(_slots(values, self.n_slots, what, *args))
+        return off
+
+
+def _block_matrices(blk, b: int) -> tuple[np.ndarray, ...]:
+    """``A, B, C, D`` of block ``b`` as float arrays of consistent shapes."""
+    Ab = np.atleast_2d(np.asarray(blk.A, dtype=float)) if np.size(blk.A) else np.zeros((0, 0))
+    nxb, nin, nout = Ab.shape[0], len(blk.inputs), len(blk.outputs)
+    try:
+        return (Ab.reshape(nxb, nxb), np.asarray(blk.B, dtype=float).reshape(nxb, nin),
+                np.asarray(blk.C, dtype=float).reshape(nout, nxb),
+                np.asarray(blk.D, dtype=float).reshape(nout, nin))
+    except ValueError:
+        raise ModelError(f"block {b}: matrices do not match {nxb} states, {nin} inputs and "
+                         f"{nout} outputs") from None
+
+
+def _block_patterns(programs: Sequence[HybridProgram]) -> list[tuple[np.ndarray, ...]] | None:
+    """The non-zero pattern of every block's ``A, B, C, D``, united over ``programs`` (None when
+    their blocks differ in number or shapes: the structure check reports it)."""
+    patterns = None
+    for p in programs:
+        mats = [_block_matrices(blk, b) for b, blk in enumerate(p.blocks)]
+        masks = [tuple(m != 0.0 for m in ms) for ms in mats]
+        if patterns is None:
+            patterns = masks
+            continue
+        if len(masks) != len(patterns) or any(a.shape != b.shape for m, q in zip(masks, patterns)
+                                               for a, b in zip(m, q)):
+            return None
+        patterns = [tuple(a | b for a, b in zip(m, q)) for m, q in zip(masks, patterns)]
+    return patterns
+
+
+def _lower_blocks(blocks, flat: _Flat,
+                  patterns=None) -> tuple[list[tuple[int, ...]], list[np.ndarray]]:
+    """Per block ``(nxb, n_out, update rows, output rows, outputs, state offset)`` and the initial
+    states.
+
+    ``x+ = A x + B u`` and ``y = C x + D u`` are stored as sparse rows: at offset ``p`` in ``idx``,
+    row ``r`` is ``(f, ns, ni, ns state positions, ni input slots)`` with its ``ns + ni``
+    coefficients at ``fdata[f:]``; the state terms come first, as in a dense product. The
+    coefficients outside ``patterns`` (default: the non-zeros) are left out: they would add
+    ``±0`` to a sum starting at ``+0.0``, which leaves it unchanged (only ``0 * inf`` or
+    ``0 * nan`` would have made it NaN).
+    """
+    rows: list[tuple[int, ...]] = []
+    xb0: list[np.ndarray] = []
+    xs = 0
+    n_slots = flat.n_slots
+    for b, blk in enumerate(blocks):
+        Ab, Bb, Cb, Db = _block_matrices(blk, b)
+        nxb, nout = Ab.shape[0], Cb.shape[0]
+        inputs = _slots(blk.inputs, n_slots, "block {} input", b)
+        masks = patterns[b] if patterns is not None else tuple(m != 0.0 for m in (Ab, Bb, Cb, Db))
+
+        def sparse_rows(X, U, mX, mU):
+            start = len(flat.idx)
+            for xr, ur, kx, ku in zip(X.tolist(), U.tolist(), mX.tolist(), mU.tolist()):
+                cx = [j for j, keep in enumerate(kx) if keep]
+                cu = [j for j, keep in enumerate(ku) if keep]
+                f = flat.add_floats([xr[j] for j in cx] + [ur[j] for j in cu])
+                flat.idx += [f, len(cx), len(cu)] + [xs + j for j in cx] + [inputs[j] for j in cu]
+            return start
+
+        update = sparse_rows(Ab, Bb, masks[0], masks[1])
+        output = sparse_rows(Cb, Db, masks[2], masks[3])
+        outputs = flat.add_ints(blk.outputs, "block {} output", b)
+        rows.append((nxb, nout, update, output, outputs, xs))
+        x0 = np.zeros(nxb) if blk.x0 is None else np.asarray(blk.x0, dtype=float).reshape(nxb)
+        xb0.append(x0)
+        xs += nxb
+    return rows, xb0
+
+
+def _lower_ops(ops, blocks: list[tuple[int, ...]], n_columns: int, flat: _Flat):
+    """The op list as ``op_code``, ``op_period``, ``op_phase``, ``op_ip`` (int operands), ``op_fp``
+    (float operands) and the total delay-line length.
+
+    ``op_ip`` rows by kind: LinearOutput ``(n_out, rows, outputs)``, LinearUpdate ``(nxb, rows,
+    state)`` (the sparse rows of ``[C D]`` or ``[A B]`` and the outputs in ``idx``, the state
+    offset; see :func:`_lower_blocks`), Sum ``(n, inputs, output, weights)``, Saturate ``(input,
+    output, lower_slot, upper_slot)``, Quantize ``(input, output, floor)``, Delay ``(input, output, samples, ring)``,
+    CurrentLimit ``(speed, lower, upper)``, ClampGate ``(input, unsaturated, saturated, output)``,
+    Setpoint ``(column, output)``.
+    """
+    n_slots = flat.n_slots
+    codes, periods, phases, ints, floats = [], [], [], [], []
+    n_delay = 0
+    n_blocks = len(blocks)
+    for o, op in enumerate(ops):
+        period = int(op.period)
+        if period < 1:
+            raise ModelError(f"op {o}: period must be a positive number of base steps",
+                             value=op.period)
+        periods.append(period)
+        phases.append(int(op.phase))
+        fp: tuple = ()
+        if isinstance(op, (LinearOutput, LinearUpdate)):
+            if not 0 <= op.block < n_blocks:
+                raise ModelError(f"op {o}: no block {op.block} ({n_blocks} blocks)")
+            nxb, nout, update, output, outputs, xo = blocks[op.block]
+            if isinstance(op, LinearOutput):
+                code = _LIN_OUT
+                ip = (nout, output, outputs)
+            else:
+                code = _LIN_UPD
+                ip = (nxb, update, xo)
+        elif isinstance(op, Sum):
+            if len(op.inputs) != len(op.weights):
+                raise ModelError(f"op {o}: Sum needs one weight per input",
+                                 value=(op.inputs, op.weights))
+            code = _SUM
+            ip = (len(op.inputs), flat.add_ints(op.inputs, "op {} input", o),
+                  _slot(op.output, n_slots, "op {} output", o), flat.add_floats(op.weights))
+            fp = (op.offset,)
+        elif isinstance(op, Saturate):
+            code = _SAT
+            ip = (_slot(op.input, n_slots, "op {} input", o),
+                  _slot(op.output, n_slots, "op {} output", o),
+                  -1 if op.lower_slot < 0 else _slot(op.lower_slot, n_slots, "op {} lower_slot", o),
+                  -1 if op.upper_slot < 0 else _slot(op.upper_slot, n_slots, "op {} upper_slot", o))
+            fp = (op.lower, op.upper)
+        elif isinstance(op, Quantize):
+            if op.mode not in ("round", "floor"):
+                raise ModelError(f"op {o}: Quantize mode must be 'round' or 'floor'", value=op.mode)
+            if not (np.isfinite(op.step) and op.step > 0):
+                raise ModelError(f"op {o}: Quantize step must be positive", value=op.step)
+            code = _QUANT
+            ip = (_slot(op.input, n_slots, "op {} input", o),
+                  _slot(op.output, n_slots, "op {} output", o), op.mode == "floor")
+            fp = (op.step,)
+        elif isinstance(op, Delay):
+            if op.samples < 0:
+                raise ModelError(f"op {o}: Delay samples must be >= 0", value=op.samples)
+            code = _DELAY
+            ip = (_slot(op.input, n_slots, "op {} input", o),
+                  _slot(op.output, n_slots, "op {} output", o), op.samples, n_delay)
+            n_delay += int(op.samples)
+        elif isinstance(op, CurrentLimit):
+            if not op.i_peak > 0 or not op.u_max > 0:
+                raise ModelError(f"op {o}: CurrentLimit needs i_peak > 0 and u_max > 0",
+                                 value=(op.i_peak, op.u_max))
+            code = _CURLIM
+            ip = (_slot(op.speed, n_slots, "op {} speed", o),
+                  _slot(op.lower, n_slots, "op {} lower", o),
+                  _slot(op.upper, n_slots, "op {} upper", o))
+            fp = (op.i_peak, op.u_max, op.resistance, op.ke, op.wl)
+        elif isinstance(op, ClampGate):
+            code = _CLAMP
+            ip = (_slot(op.input, n_slots, "op {} input", o),
+                  _slot(op.unsaturated, n_slots, "op {} unsaturated", o),
+                  _slot(op.saturated, n_slots, "op {} saturated", o),
+                  _slot(op.output, n_slots, "op {} output", o))
+        elif isinstance(op, Setpoint):
+            if not 0 <= op.column < n_columns:
+                raise ModelError(f"op {o}: Setpoint column must be in [0, {n_columns})",
+                                 value=op.column)
+            code = _SETPOINT
+            ip = (op.column, _slot(op.output, n_slots, "op {} output", o))
+        else:
+            raise ModelError(f"op {o}: unknown op kind {type(op).__name__}")
+        codes.append(code)
+        ints.append(tuple(ip) + (0,) * (_NIP - len(ip)))
+        floats.append(tuple(fp) + (0.0,) * (_NFP - len(fp)))
+    n_ops = len(ops)
+    op_code = np.array(codes, dtype=np.int64)
+    op_period = np.array(periods, dtype=np.int64)
+    op_phase = np.array(phases, dtype=np.int64)
+    op_ip = np.array(ints, dtype=np.int64).reshape(n_ops, _NIP)
+    op_fp = np.array(floats, dtype=float).reshape(n_ops, _NFP)
+    return op_code, op_period, op_phase, op_ip, op_fp, n_delay
+
+
+def _lower(program: HybridProgram, record: Sequence[int] | None = None,
+           patterns: list[tuple[np.ndarray, ...]] | None = None) -> _Lowered:
     n_slots = program.n_slots
     cont = program.continuous
     A = np.atleast_2d(np.asarray(cont.A, dtype=float))
     nx = A.shape[0]
-    in_slots = np.array([_slot(s, n_slots, "continuous input slot") for s in cont.input_slots],
-                        dtype=np.int64)
-    out_slots = np.array([_slot(s, n_slots, "continuous output slot") for s in cont.output_slots],
+    in_slots = np.array(_slots(cont.input_slots, n_slots, "continuous input slot"), dtype=np.int64)
+    out_slots = np.array(_slots(cont.output_slots, n_slots, "continuous output slot"),
                          dtype=np.int64)
     nu, ny = in_slots.size, out_slots.size
     try:
@@ -691,132 +915,25 @@ def _lower(program: HybridProgram, record: Sequence[int] | None = None) -> _Lowe
                          for j in links] if fr_all else [], dtype=np.int64)
 
     rec = program.record if record is None else tuple(record)
-    rec_slots = np.array([_slot(s, n_slots, "recorded slot") for s in rec], dtype=np.int64)
+    rec_slots = np.array(_slots(rec, n_slots, "recorded slot"), dtype=np.int64)
 
     table = np.atleast_2d(np.asarray(program.table, dtype=float))
     if table.shape[1] == 0:
         table = np.zeros((table.shape[0], 1))
 
-    idx: list[int] = []
-    fdata: list[np.ndarray] = []
-    f_len = 0
-
-    def add_floats(a: np.ndarray) -> int:
-        nonlocal f_len
-        off = f_len
-        flat = np.asarray(a, dtype=float).reshape(-1)
-        fdata.append(flat)
-        f_len += flat.size
-        return off
-
-    def add_ints(values: Sequence[int], what: str) -> int:
-        off = len(idx)
-        idx.extend(_slot(v, n_slots, what) for v in values)
-        return off
-
-    blk_i = np.zeros((len(program.blocks), _NBI), dtype=np.int64)
-    xb0: list[np.ndarray] = []
-    xs = 0
-    for b, blk in enumerate(program.blocks):
-        Ab = np.atleast_2d(np.asarray(blk.A, dtype=float)) if np.size(blk.A) else np.zeros((0, 0))
-        nxb, nin, nout = Ab.shape[0], len(blk.inputs), len(blk.outputs)
-        try:
-            Ab = Ab.reshape(nxb, nxb)
-            Bb = np.asarray(blk.B, dtype=float).reshape(nxb, nin)
-            Cb = np.asarray(blk.C, dtype=float).reshape(nout, nxb)
-            Db = np.asarray(blk.D, dtype=float).reshape(nout, nin)
-        except ValueError:
-            raise ModelError(f"block {b}: matrices do not match {nxb} states, {nin} inputs and "
-                             f"{nout} outputs") from None
-        blk_i[b] = (nxb, nin, nout, add_floats(Ab), add_floats(Bb), add_floats(Cb), add_floats(Db),
-                    add_ints(blk.inputs, f"block {b} input"), add_ints(blk.outputs, f"block {b} output"),
-                    xs)
-        x0b = np.zeros(nxb) if blk.x0 is None else np.asarray(blk.x0, dtype=float).reshape(nxb)
-        xb0.append(x0b)
-        xs += nxb
-
-    n_ops = len(program.ops)
-    op_code = np.zeros(n_ops, dtype=np.int64)
-    op_period = np.ones(n_ops, dtype=np.int64)
-    op_phase = np.zeros(n_ops, dtype=np.int64)
-    op_ip = np.zeros((n_ops, _NIP), dtype=np.int64)
-    op_fp = np.zeros((n_ops, _NFP))
-    n_delay = 0
-    n_blocks = len(program.blocks)
-    for o, op in enumerate(program.ops):
-        period = int(op.period)
-        if period < 1:
-            raise ModelError(f"op {o}: period must be a positive number of base steps",
-                             value=op.period)
-        op_period[o], op_phase[o] = period, int(op.phase)
-        if isinstance(op, (LinearOutput, LinearUpdate)):
-            if not 0 <= op.block < n_blocks:
-                raise ModelError(f"op {o}: no block {op.block} ({n_blocks} blocks)")
-            op_code[o] = _LIN_OUT if isinstance(op, LinearOutput) else _LIN_UPD
-            op_ip[o, 0] = op.block
-        elif isinstance(op, Sum):
-            if len(op.inputs) != len(op.weights):
-                raise ModelError(f"op {o}: Sum needs one weight per input",
-                                 value=(op.inputs, op.weights))
-            op_code[o] = _SUM
-            op_ip[o] = (len(op.inputs), add_ints(op.inputs, f"op {o} input"),
-                        _slot(op.output, n_slots, f"op {o} output"), add_floats(op.weights))
-            op_fp[o, 0] = op.offset
-        elif isinstance(op, Saturate):
-            op_code[o] = _SAT
-            op_ip[o] = (_slot(op.input, n_slots, f"op {o} input"),
-                        _slot(op.output, n_slots, f"op {o} output"),
-                        -1 if op.lower_slot < 0 else _slot(op.lower_slot, n_slots, f"op {o} lower_slot"),
-                        -1 if op.upper_slot < 0 else _slot(op.upper_slot, n_slots, f"op {o} upper_slot"))
-            op_fp[o, :2] = (op.lower, op.upper)
-        elif isinstance(op, Quantize):
-            if op.mode not in ("round", "floor"):
-                raise ModelError(f"op {o}: Quantize mode must be 'round' or 'floor'", value=op.mode)
-            if not (np.isfinite(op.step) and op.step > 0):
-                raise ModelError(f"op {o}: Quantize step must be positive", value=op.step)
-            op_code[o] = _QUANT
-            op_ip[o, :3] = (_slot(op.input, n_slots, f"op {o} input"),
-                            _slot(op.output, n_slots, f"op {o} output"), op.mode == "floor")
-            op_fp[o, 0] = op.step
-        elif isinstance(op, Delay):
-            if op.samples < 0:
-                raise ModelError(f"op {o}: Delay samples must be >= 0", value=op.samples)
-            op_code[o] = _DELAY
-            op_ip[o] = (_slot(op.input, n_slots, f"op {o} input"),
-                        _slot(op.output, n_slots, f"op {o} output"), op.samples, n_delay)
-            n_delay += int(op.samples)
-        elif isinstance(op, CurrentLimit):
-            if not op.i_peak > 0 or not op.u_max > 0:
-                raise ModelError(f"op {o}: CurrentLimit needs i_peak > 0 and u_max > 0",
-                                 value=(op.i_peak, op.u_max))
-            op_code[o] = _CURLIM
-            op_ip[o, :3] = (_slot(op.speed, n_slots, f"op {o} speed"),
-                            _slot(op.lower, n_slots, f"op {o} lower"),
-                            _slot(op.upper, n_slots, f"op {o} upper"))
-            op_fp[o] = (op.i_peak, op.u_max, op.resistance, op.ke, op.wl)
-        elif isinstance(op, ClampGate):
-            op_code[o] = _CLAMP
-            op_ip[o] = (_slot(op.input, n_slots, f"op {o} input"),
-                        _slot(op.unsaturated, n_slots, f"op {o} unsaturated"),
-                        _slot(op.saturated, n_slots, f"op {o} saturated"),
-                        _slot(op.output, n_slots, f"op {o} output"))
-        elif isinstance(op, Setpoint):
-            if not 0 <= op.column < table.shape[0]:
-                raise ModelError(f"op {o}: Setpoint column must be in [0, {table.shape[0]})",
-                                 value=op.column)
-            op_code[o] = _SETPOINT
-            op_ip[o, :2] = (op.column, _slot(op.output, n_slots, f"op {o} output"))
-        else:
-            raise ModelError(f"op {o}: unknown op kind {type(op).__name__}")
-
+    flat = _Flat(n_slots)
+    blocks, xb0 = _lower_blocks(program.blocks, flat, patterns)
+    op_code, op_period, op_phase, op_ip, op_fp, n_delay = _lower_ops(program.ops, blocks,
+                                                                     table.shape[0], flat)
+    xs = sum(x.size for x in xb0)
     struct = dict(op_code=op_code, op_period=op_period, op_phase=op_phase, op_ip=op_ip,
-                  idx=np.array(idx, dtype=np.int64), blk_i=blk_i, in_slots=in_slots,
+                  idx=np.array(flat.idx, dtype=np.int64), in_slots=in_slots,
                   out_slots=out_slots, fr_slots=fr_slots, rec_slots=rec_slots,
-                  shapes=np.array([n_slots, nx, nu, ny, links.size, n_delay, f_len, xs,
+                  shapes=np.array([n_slots, nx, nu, ny, links.size, n_delay, flat.f_len, xs,
                                    *table.shape], dtype=np.int64),
                   links=links.astype(np.int64))
     nums = dict(op_fp=op_fp,
-                fdata=np.concatenate(fdata) if fdata else np.zeros(0),
+                fdata=np.array(flat.floats, dtype=float),
                 xb0=np.concatenate(xb0) if xb0 else np.zeros(0),
                 table=np.ascontiguousarray(table), CD=np.hstack([C, D]), G=G,
                 coulomb=np.ascontiguousarray(coulomb),
@@ -825,13 +942,11 @@ def _lower(program: HybridProgram, record: Sequence[int] | None = None) -> _Lowe
 
 
 def _kernel_matrices(programs: Sequence[HybridProgram], links: np.ndarray,
-                     levels: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stacked ``[Phi Gamma]ᵀ`` (transposed), ``[Lx Lu Lf]`` and projections of every variant."""
-    disc = discretize_many([p.continuous for p in programs], programs[0].step,
-                           levels if links.size else 0, links=links)
-    PG = np.ascontiguousarray(np.swapaxes(np.concatenate([disc.Phi, disc.Gamma], axis=-1), -1, -2))
-    Lz = np.ascontiguousarray(np.concatenate([disc.Lx, disc.Lu, disc.Lf], axis=-1))
-    return PG, Lz, np.ascontiguousarray(disc.projection)
+                     levels: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``[Phi Gamma]ᵀ`` (transposed), ``[Lx Lu Lf]`` and projections of every distinct continuous
+    part, and the index of each program's part in them."""
+    return _kernel_layout([p.continuous for p in programs], programs[0].step,
+                          levels if links.size else 0, links)
 
 
 def _sparse_outputs(CD: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -840,11 +955,11 @@ def _sparse_outputs(CD: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     Returns ``(ptr, col, val)``: row ``r`` is ``Σ val[v, q] z[col[q]]`` for ``ptr[r] <= q < ptr[r+1]``;
     the pattern is the union of the variants' non-zeros (outputs are mostly selections of states).
     """
-    mask = np.any(CD != 0.0, axis=0)
-    ptr = np.concatenate([[0], np.cumsum(mask.sum(axis=1))]).astype(np.int64)
-    col = np.nonzero(mask)[1].astype(np.int64)
-    val = np.ascontiguousarray(CD[:, mask])
-    return ptr, col, val
+    mask = (CD != 0.0).any(axis=0) if CD.shape[0] > 1 else CD[0] != 0.0
+    rows, col = np.nonzero(mask)
+    ptr = np.zeros(CD.shape[1] + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=CD.shape[1]), out=ptr[1:])
+    return ptr, col.astype(np.int64), np.ascontiguousarray(CD[:, rows, col])
 
 
 def _divergence_args(divergence_limit: float | None) -> tuple[float, float]:
@@ -935,32 +1050,40 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
 
     Divergence is checked on the continuous state after every step and on the recorded slots
     (NaN); block states are not checked themselves (they act through the slots).
+
+    Exact-zero coefficients of the linear blocks and of the continuous outputs ``[C D]`` are
+    skipped (a batch keeps those non-zero in any variant): adding their ``±0`` products leaves a
+    sum unchanged, so only an infinite or NaN input met by a zero coefficient no longer yields NaN.
     """
     _check_run_args(n_steps, levels, max_events)
     n_steps = int(n_steps)
     low = _lower(program)
-    PG, Lz, Proj = _kernel_matrices([program], low.links, int(levels))
+    PG, Lz, Proj, _ = _kernel_matrices([program], low.links, int(levels))
     s, m = low.struct, low.nums
     out_ptr, out_col, out_val = _sparse_outputs(m["CD"][None])
     nf = low.links.size
-    rec = np.zeros((n_steps, s["rec_slots"].size))
-    states = np.zeros((n_steps, low.nx))
-    fric = np.zeros((n_steps, nf))
-    stuck = np.zeros((n_steps, nf), dtype=np.bool_)
+    # every row is written by the kernel (or the run raises): no need to zero them
+    rec = np.empty((n_steps, s["rec_slots"].size))
+    states = np.empty((n_steps, low.nx))
+    fric = np.empty((n_steps, nf))
+    stuck = np.empty((n_steps, nf), dtype=np.bool_)
     x_final = np.zeros(low.nx)
     limit_abs, factor = _divergence_args(divergence_limit)
     status, k_bad, n_events = _simulate(
         n_steps, 1, True, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP,
         s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], m["op_fp"], s["idx"], m["fdata"],
-        s["blk_i"], m["xb0"], m["table"], int(s["shapes"][5]), s["in_slots"], s["out_slots"],
+        m["xb0"], m["table"], int(s["shapes"][5]), s["in_slots"], s["out_slots"],
         s["fr_slots"], s["rec_slots"], int(program.n_slots), PG[0], Lz[0], Proj[0], out_ptr, out_col,
         out_val[0], m["G"], m["coulomb"], m["static"], m["x0"], rec, states, fric, stuck, x_final)
     if status != _OK:
         raise _diverged(status, k_bad, program.step, None)
-    friction = np.zeros((n_steps, low.n_links))
-    stuck_all = np.zeros((n_steps, low.n_links), dtype=bool)
-    friction[:, low.links] = fric
-    stuck_all[:, low.links] = stuck
+    if nf == low.n_links:          # every link acts: the kernel's columns are the links
+        friction, stuck_all = fric, stuck
+    else:
+        friction = np.zeros((n_steps, low.n_links))
+        stuck_all = np.zeros((n_steps, low.n_links), dtype=bool)
+        friction[:, low.links] = fric
+        stuck_all[:, low.links] = stuck
     names = tuple(program.slot_names[i] for i in s["rec_slots"])
     return KernelResult(time=np.arange(n_steps) * program.step, records=rec, record_names=names,
                         states=states, friction=friction, stuck=stuck_all, final_state=x_final,
@@ -1014,24 +1137,29 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
         raise ModelError("run_batch needs at least one program")
     n_steps, every = int(n_steps), int(record_every)
     rec_sel = _record_slots(programs[0], record)
-    lows = [_lower(p, rec_sel) for p in programs]
+    patterns = _block_patterns(programs)
+    lows = [_lower(p, rec_sel, patterns) for p in programs]
     first = lows[0]
     step = programs[0].step
+    key = first.structure_key()
     for v, (p, low) in enumerate(zip(programs, lows)):
         if p.step != step:
             raise ModelError(f"variant {v}: base step differs from variant 0", value=p.step)
-        for key, ref in first.struct.items():
-            if not np.array_equal(low.struct[key], ref) or low.struct[key].shape != ref.shape:
-                raise ModelError(f"variant {v} does not have the structure of variant 0 ({key} "
-                                 f"differs)")
-    PG, Lz, Proj = _kernel_matrices(programs, first.links, int(levels))
+        if low.structure_key() != key:
+            what = next(name for name, ref in first.struct.items()
+                        if low.struct[name].shape != ref.shape
+                        or not np.array_equal(low.struct[name], ref))
+            raise ModelError(f"variant {v} does not have the structure of variant 0 ({what} "
+                             f"differs)")
+    PG, Lz, Proj, cont = _kernel_matrices(programs, first.links, int(levels))
     nums = {key: np.ascontiguousarray(np.stack([low.nums[key] for low in lows]))
             for key in first.nums}
     s = first.struct
     out_ptr, out_col, out_val = _sparse_outputs(nums["CD"])
     nv = len(programs)
     n_rec = -(-n_steps // every)
-    rec = np.zeros((nv, n_rec, s["rec_slots"].size))
+    # rows from a divergence on are zeroed below; the others are all written by the kernel
+    rec = np.empty((nv, n_rec, s["rec_slots"].size))
     x_final = np.zeros((nv, first.nx))
     status = np.zeros(nv, dtype=np.int64)
     k_bad = np.zeros(nv, dtype=np.int64)
@@ -1039,8 +1167,8 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
     _simulate_batch(
         n_steps, every, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP,
         s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
-        nums["fdata"], s["blk_i"], nums["xb0"], nums["table"], int(s["shapes"][5]), s["in_slots"],
-        s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj,
+        nums["fdata"], nums["xb0"], nums["table"], int(s["shapes"][5]), s["in_slots"],
+        s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, cont,
         out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"], rec,
         x_final, status, k_bad)
     diverged_step = np.where(status != _OK, k_bad, -1)
