@@ -64,7 +64,7 @@ from sicomat.simulate import kernel, loop_program, simulate  # noqa: E402
 DURATION = 1.0
 N_VARIANTS = 1000
 BATCH_RECORD_EVERY = 8
-FEW_SLOTS = ("following_error", "tool.position", "current.applied")
+FEW_SLOTS = ("sensor.scale", "velocity.raw", "current.feedback")  # real slots (others are aliases/derived)
 PEER_METHOD = "LSODA"
 PEER_RTOL, PEER_ATOL = 1e-8, 1e-12
 PEER_SHORT = 0.1            # s: the peer's window in quick mode or when the full second is too long
@@ -226,7 +226,7 @@ def _batch(machine, loop: ServoLoop, profile: Profile, n_variants: int, repeat: 
 
     # warm-up: the batch kernel's first call (cache load or compile) is not part of the figure
     prog0, n_steps = loop_program(loop, profile, DURATION)
-    kernel.run_batch([prog0, prog0], 10, record=["following_error"], record_every=BATCH_RECORD_EVERY)
+    kernel.run_batch([prog0, prog0], 10, record=["sensor.scale"], record_every=BATCH_RECORD_EVERY)
     times: dict[str, list[float]] = {}
     result = None
     for _ in range(repeat):
@@ -235,8 +235,8 @@ def _batch(machine, loop: ServoLoop, profile: Profile, n_variants: int, repeat: 
         loops = stage(lambda: [(lp := build_servo_loop(m, axis)).with_gains(Kp=lp.Kp * k)
                                for m, k in zip(machines, kp_scale)], times, "servo_loops")
         programs = stage(lambda: [loop_program(lp, profile, DURATION)[0] for lp in loops], times, "programs")
-        stage(lambda: kernel.run_batch(programs, 1, record=["following_error"]), times, "run_batch_1_step")
-        result = stage(lambda: kernel.run_batch(programs, n_steps, record=["following_error"],
+        stage(lambda: kernel.run_batch(programs, 1, record=["sensor.scale"]), times, "run_batch_1_step")
+        result = stage(lambda: kernel.run_batch(programs, n_steps, record=["sensor.scale"],
                                                 record_every=BATCH_RECORD_EVERY, on_divergence="flag"),
                        times, "run_batch")
     totals = [sum(times[k][i] for k in ("model_variants", "servo_loops", "programs", "run_batch"))
@@ -247,7 +247,7 @@ def _batch(machine, loop: ServoLoop, profile: Profile, n_variants: int, repeat: 
     fe = np.abs(result.records[:, :, 0]).max(axis=1)
     return {
         "variants": n_variants, "n_steps": n_steps, "record_every": BATCH_RECORD_EVERY,
-        "recorded": ["following_error"], "repeat": repeat,
+        "recorded": ["sensor.scale"], "repeat": repeat,
         "varied": {"Kp_scale": [float(kp_scale.min()), float(kp_scale.max())],
                    f"{body}_mass_kg": [float(mass * mass_scale.min()), float(mass * mass_scale.max())]},
         "stages_s": {k: v for k, v in times.items()},
@@ -258,7 +258,7 @@ def _batch(machine, loop: ServoLoop, profile: Profile, n_variants: int, repeat: 
         "run_batch_setup_s": min(times["run_batch_1_step"]),
         "per_variant_ms": 1e3 * min(times["run_batch"]) / n_variants,
         "diverged": int(result.diverged.sum()),
-        "max_following_error_m": [float(fe.min()), float(fe.max())],
+        "max_scale_reading_m": [float(fe.min()), float(fe.max())],
         "included": "model variants validated from the file's data (with_overrides), servo loops built, "
                     "setpoint tables and programs lowered (loop_program), then run_batch: lowering to flat "
                     "arrays, ZOH discretisation of every variant (2 stick configurations x 11 step "
@@ -328,8 +328,11 @@ def run(quick: bool = False) -> dict[str, Any]:
     peer = _peer(loop, profile, h, quick)
     resp = peer.pop("response")
     n_cmp = resp.outputs.shape[1]
-    load_ours = res.records[:n_cmp, names.index("tool.position")]
-    fe_ours = res.records[:n_cmp, names.index("following_error")]
+    from sicomat.simulate import named_signals
+
+    sig = named_signals(loop, program, res.records, profile.evaluate(res.time)[0], res.states)
+    load_ours = sig["tool.position"][:n_cmp]
+    fe_ours = sig["following_error"][:n_cmp]
     load_peer, fe_peer = np.asarray(resp.outputs[0]), np.asarray(resp.outputs[1])
     move = abs(profile.distance)
     diff = {
@@ -449,7 +452,7 @@ def report(r: dict[str, Any]) -> str:
                              f"{b['repeat']} repeat(s); cores used {b['cores_used']:.2f}"))
     lines.append(f"batch kernel: {b['per_variant_ms']:.2f} ms per variant "
                  f"({q['slowdown_vs_bare_batch_kernel']['best']:.1f}x the bare loop), {b['diverged']} diverged, "
-                 f"max following error {1e3 * b['max_following_error_m'][0]:.3g}..{1e3 * b['max_following_error_m'][1]:.3g} mm "
+                 f"max scale reading {1e3 * b['max_scale_reading_m'][0]:.3g}..{1e3 * b['max_scale_reading_m'][1]:.3g} mm "
                  f"(run_batch warmed up before timing)")
     s, w = q["speedup_vs_python_control"], q["slowdown_vs_bare"]
     t = r["targets_met"]
