@@ -213,3 +213,16 @@ def to_json(data: Any) -> str:
         return x
 
     return json.dumps(clean(data), indent=2, ensure_ascii=False)
+
+
+def module_main(doc: str, run, report, quick_help: str = "fewer repeats", argv=None) -> None:
+    """The ``__main__`` entry of one benchmark module: parse ``--quick``, print the OPENBLAS note and the report."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=quick_help)
+    args = parser.parse_args(argv)
+    note = openblas_note()
+    if note:
+        print("NOTE: " + note)
+    print(report(run(quick=args.quick)))

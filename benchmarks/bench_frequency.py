@@ -373,15 +373,10 @@ def report(r: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    import argparse
+    """Run this benchmark alone."""
+    from benchmarks._common import module_main
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer repeats")
-    args = parser.parse_args(argv)
-    note = openblas_note()
-    if note:
-        print("NOTE: " + note)
-    print(report(run(quick=args.quick)))
+    module_main(__doc__, run, report, argv=argv)
 
 
 if __name__ == "__main__":
