@@ -234,3 +234,17 @@ def test_save_model_overwrites(tmp_path):
     save_model(machine, target)
     assert load_model(target) == machine
     assert [p.name for p in tmp_path.iterdir()] == ["model.toml"]
+
+
+def test_overrides_copy_only_their_path_and_never_touch_the_input():
+    from sicomat.modelfile import _set_path
+
+    data = {"a": {"b": [1, {"c": 2}], "d": {"e": 3}}, "f": 4}
+    out = _set_path(data, "a.b.1.c", 5, source="test")
+    assert out == {"a": {"b": [1, {"c": 5}], "d": {"e": 3}}, "f": 4}
+    assert data == {"a": {"b": [1, {"c": 2}], "d": {"e": 3}}, "f": 4}
+    new = _set_path(data, "a.x.y", 6, source="test")            # missing tables are created
+    assert new["a"]["x"] == {"y": 6} and "x" not in data["a"]
+    with pytest.raises(ModelError, match="not a table"):
+        _set_path(data, "f.g.h", 1, source="test")
+    assert data["f"] == 4

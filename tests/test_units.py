@@ -83,3 +83,46 @@ def test_dimensionless_unit_is_not_a_mass(text):
 
 def test_percent_as_plain_number_is_scaled():
     assert_allclose(parse_quantity("50 %", UNITS["dimensionless"]), 0.5, rtol=1e-12)
+
+
+# ------------------------------------------------------------------ cached "<number> <unit>" path
+FAST_CASES = [("250 kg", "mass"), ("9 ms", "time"), ("10 mm/rev", "radius"), ("80 %", "fraction"),
+              ("1e3 mm", "length"), ("-5.5e-3 N*m/rad", "torsional_stiffness"), ("0.125 um", "length"),
+              ("3 kg m", "force_constant"), ("2.5 mm / 2 s", "velocity"), ("7 g*cm**2", "inertia"),
+              ("12 mH", "inductance"), ("45 deg", "angle"), (".5 N*s/m", "linear_damping")]
+
+
+@pytest.mark.parametrize("text, kind", FAST_CASES)
+def test_cached_unit_factor_matches_a_full_pint_parse(text, kind):
+    from sicomat.units import _parse_with_pint
+
+    unit = UNITS[kind]
+    try:
+        expected = float(f"{_parse_with_pint(text, unit):.15g}")
+    except ValueError:
+        with pytest.raises(ValueError):
+            parse_quantity(text, unit)
+        return
+    # the same value whether the unit's factor is already cached or not
+    assert parse_quantity(text, unit) == pytest.approx(expected, rel=1e-15, abs=0)
+    assert parse_quantity(text, unit) == pytest.approx(expected, rel=1e-15, abs=0)
+
+
+@pytest.mark.parametrize("text, kind, fragment", [("2 rad", "length", "dimension dimensionless"),
+                                                  ("5 s", "length", "dimension time"),
+                                                  ("3 furlongz", "length", "unknown unit")])
+def test_cached_path_keeps_the_full_error_messages(text, kind, fragment):
+    for _ in range(2):      # the second time the unit's (failed) factor is cached
+        with pytest.raises(ValueError, match=fragment):
+            parse_quantity(text, UNITS[kind])
+
+
+def test_offset_units_are_not_taken_as_factors():
+    from sicomat.units import _unit_factor
+
+    kelvin = Unit("K", "a temperature (K)")
+    assert _unit_factor("degC", "K") is None        # 1 degC is not 1 K times a factor
+    for _ in range(2):                               # pint refuses "10 degC" as a product: so do we
+        with pytest.raises(ValueError):
+            parse_quantity("10 degC", kelvin)
+    assert parse_quantity("10 K", kelvin) == 10.0

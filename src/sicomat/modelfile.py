@@ -97,20 +97,27 @@ def parse_override(item: str) -> tuple[str, Any]:
 
 
 def _set_path(data: Mapping[str, Any], key: str, value: Any, source: str) -> dict[str, Any]:
-    import copy
+    """A copy of ``data`` with ``value`` at ``key``; ``data`` is left unchanged.
 
-    root = copy.deepcopy(dict(data))
+    Only the tables and arrays on the key's path are copied (the rest is shared with ``data``):
+    a deep copy of a whole machine cost more than validating it.
+    """
+    root = dict(data)
     parts = key.split(".")
     node: Any = root
     for depth, part in enumerate(parts[:-1]):
         where = ".".join(parts[: depth + 1])
         if isinstance(node, dict):
-            node = node.setdefault(part, {})
+            child = node.get(part, {})
         elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
-            node = node[int(part)]
+            part, child = int(part), node[int(part)]  # type: ignore[assignment]
         else:
             raise ModelError("this key path goes through a value that is not a table", source=source,
                              path=where)
+        if isinstance(child, (dict, list)):
+            child = type(child)(child)
+        node[part] = child
+        node = child
     last = parts[-1]
     if isinstance(node, dict):
         node[last] = value

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from functools import lru_cache
 from typing import Any
 
@@ -102,7 +103,35 @@ def parse_quantity(value: Any, unit: Unit) -> float:
     return result
 
 
+_NUMBER_THEN_UNIT = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\W\d_].*?|%)\s*")
+"""``"<number> <unit expression>"`` whose unit part starts with a letter (or is ``%``): the number
+then multiplies the whole unit expression, so its value is ``number * (1 <unit> in SI)``."""
+
+
 def _parse_string(text: str, unit: Unit) -> float:
+    """``text`` in SI units of ``unit``; the common form ``"<number> <unit>"`` costs one pint
+    conversion per distinct unit (cached), e.g. for thousands of model variants."""
+    match = _NUMBER_THEN_UNIT.fullmatch(text)
+    if match:
+        factor = _unit_factor(match.group(2), unit.si)
+        if factor is not None:
+            return float(match.group(1)) * factor
+    return _parse_with_pint(text, unit)
+
+
+@lru_cache(maxsize=512)
+def _unit_factor(unit_text: str, si: str) -> float | None:
+    """SI value of one ``unit_text`` when the conversion is a plain factor, else None (offset
+    units such as degC, unknown units, wrong dimensions: the full parse reports those)."""
+    try:
+        one = _parse_with_pint(f"1 {unit_text}", Unit(si, ""))
+        two = _parse_with_pint(f"2 {unit_text}", Unit(si, ""))
+    except ValueError:
+        return None
+    return one if two == 2.0 * one else None
+
+
+def _parse_with_pint(text: str, unit: Unit) -> float:
     import pint
 
     ureg = _registry()
