@@ -59,7 +59,7 @@ from sicomat.frequency import zoh_matrices  # noqa: E402
 from sicomat.loop import ServoLoop, build_servo_loop, servo_plant  # noqa: E402
 from sicomat.modelfile import with_overrides  # noqa: E402
 from sicomat.setpoints import Profile, profile_from_spec  # noqa: E402
-from sicomat.simulate import kernel, loop_program, simulate  # noqa: E402
+from sicomat.simulate import kernel, loop_program, loop_programs, simulate  # noqa: E402
 
 DURATION = 1.0
 N_VARIANTS = 1000
@@ -234,7 +234,7 @@ def _batch(machine, loop: ServoLoop, profile: Profile, n_variants: int, repeat: 
                          times, "model_variants")
         loops = stage(lambda: [(lp := build_servo_loop(m, axis)).with_gains(Kp=lp.Kp * k)
                                for m, k in zip(machines, kp_scale)], times, "servo_loops")
-        programs = stage(lambda: [loop_program(lp, profile, DURATION)[0] for lp in loops], times, "programs")
+        programs = stage(lambda: loop_programs(loops, profile, DURATION)[0], times, "programs")
         stage(lambda: kernel.run_batch(programs, 1, record=["sensor.scale"]), times, "run_batch_1_step")
         result = stage(lambda: kernel.run_batch(programs, n_steps, record=["sensor.scale"],
                                                 record_every=BATCH_RECORD_EVERY, on_divergence="flag"),
@@ -260,7 +260,7 @@ def _batch(machine, loop: ServoLoop, profile: Profile, n_variants: int, repeat: 
         "diverged": int(result.diverged.sum()),
         "max_scale_reading_m": [float(fe.min()), float(fe.max())],
         "included": "model variants validated from the file's data (with_overrides), servo loops built, "
-                    "setpoint tables and programs lowered (loop_program), then run_batch: lowering to flat "
+                    "the setpoint table sampled once and the programs built (loop_programs), then run_batch: lowering to flat "
                     "arrays, ZOH discretisation of every variant (2 stick configurations x 11 step "
                     "fractions), the compiled kernel, result arrays",
     }
@@ -439,7 +439,7 @@ def report(r: dict[str, Any]) -> str:
     st = b["stages_s"]
     brow = [[name, 1e3 * min(st[key]), 1e3 * max(st[key]), 1e3 * min(st[key + "_cpu"])] for name, key in (
         ("model variants (with_overrides)", "model_variants"), ("servo loops + gains", "servo_loops"),
-        ("programs (loop_program)", "programs"),
+        ("programs (loop_programs)", "programs"),
         ("run_batch, 1 step (lowering + discretisation)", "run_batch_1_step"),
         (f"run_batch, {b['n_steps']} steps", "run_batch"))]
     brow.append(["end to end (all but the 1-step line)", 1e3 * b["end_to_end_s"]["best"],

@@ -163,6 +163,15 @@ def test_batch_of_variants_equals_single_runs():
     assert len(set(np.round(batch.max_following_error, 12))) == 3   # the variants really differ
 
 
+def test_batch_variants_must_share_the_loop_timing():
+    from sicomat.simulate import simulate_batch
+
+    loops = [build_servo_loop(_machine(position_period=4 * H)), build_servo_loop(_machine(position_period=2 * H))]
+    with pytest.raises(ModelError, match="variant 1: the loop periods differ") as err:
+        simulate_batch(loops, trapezoid_profile(2e-3, 0.05, 1.0), 0.1)
+    assert err.value.path == "axes.X.controller"
+
+
 def test_at_rest_the_integral_action_holds_the_stuck_friction():
     """After a small move the axis sticks: the PI's integral action is the force the friction holds."""
     from pathlib import Path

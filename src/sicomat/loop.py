@@ -177,14 +177,16 @@ def servo_plant(loop: ServoLoop, *, disturbance: np.ndarray | None = None) -> "P
     mech, drv = loop.mechanics, loop.drive
     n = mech.n
     act = mech.actuator(loop.actuator)
-    base = mech.state_space()
     nx = 2 * n + 1
-    A = np.zeros((nx, nx))
-    A[: 2 * n, : 2 * n] = base.A
-    m_inv = 1.0 / np.diag(mech.mass)
+    m_inv = 1.0 / np.diag(mech.mass)            # lumped bodies: M is diagonal
+    A = np.zeros((nx, nx))                      # eqs. (11)-(12) and the current loop
+    A[:n, n: 2 * n] = np.eye(n)
+    A[n: 2 * n, :n] = -m_inv[:, None] * mech.stiffness
+    A[n: 2 * n, n: 2 * n] = -m_inv[:, None] * mech.damping
     A[n: 2 * n, 2 * n] = m_inv * act.vector * drv.kt
     A[2 * n, 2 * n] = -1.0 / drv.tau
-    columns = [np.eye(nx)[2 * n] / drv.tau]
+    eye = np.eye(nx)
+    columns = [eye[2 * n] / drv.tau]
     inputs = ["current.reference"]
     if disturbance is not None:
         load = np.zeros(nx)
@@ -192,26 +194,23 @@ def servo_plant(loop: ServoLoop, *, disturbance: np.ndarray | None = None) -> "P
         columns.append(load)
         inputs.append("disturbance")
     rows, names = [], []
-    zeros = np.zeros(n)
     for sensor in mech.sensors:
-        row = np.concatenate([zeros, sensor.vector] if sensor.kind == "velocity" else [sensor.vector, zeros])
-        rows.append(np.append(row, 0.0))
+        row = np.zeros(nx)
+        (row[n: 2 * n] if sensor.kind == "velocity" else row[:n])[:] = sensor.vector
+        rows.append(row)
         names.append(f"sensor.{sensor.name}")
-    for name, row in (("tool.position", np.concatenate([loop.tool, zeros, [0.0]])),
-                      ("tool.velocity", np.concatenate([zeros, loop.tool, [0.0]])),
-                      ("actuator.velocity", np.concatenate([zeros, act.vector, [0.0]])),
-                      ("drive.current", np.eye(nx)[2 * n]),
-                      ("drive.effort", drv.kt * np.eye(nx)[2 * n])):
+    for name, vector, offset in (("tool.position", loop.tool, 0), ("tool.velocity", loop.tool, n),
+                                 ("actuator.velocity", act.vector, n)):
+        row = np.zeros(nx)
+        row[offset: offset + n] = vector
         rows.append(row)
         names.append(name)
-    for i, dof in enumerate(mech.dofs):
-        rows.append(np.eye(nx)[i])
-        names.append(dof.position)
-    for i, dof in enumerate(mech.dofs):
-        rows.append(np.eye(nx)[n + i])
-        names.append(dof.velocity)
+    rows += [eye[2 * n], drv.kt * eye[2 * n]]
+    names += ["drive.current", "drive.effort"]
+    C = np.vstack([np.array(rows), eye[: 2 * n]])       # then every dof's position and velocity
+    names += [d.position for d in mech.dofs] + [d.velocity for d in mech.dofs]
     states = [d.position for d in mech.dofs] + [d.velocity for d in mech.dofs] + ["drive.current"]
-    return Plant(A, np.column_stack(columns), np.array(rows), np.zeros((len(rows), len(columns))),
+    return Plant(A, np.column_stack(columns), C, np.zeros((len(names), len(columns))),
                  tuple(states), tuple(inputs), tuple(names))
 
 

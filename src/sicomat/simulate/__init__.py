@@ -16,30 +16,48 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..loop import ServoLoop
     from ..setpoints import Profile
 
-__all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program"]
+__all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs"]
 
 
 def loop_program(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True):
     """The hybrid program of ``loop`` following ``profile`` for ``duration`` seconds, and its step count."""
+    programs, n_steps = loop_programs([loop], profile, duration, nonlinear=nonlinear)
+    return programs[0], n_steps
+
+
+def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
+                  nonlinear: bool = True) -> tuple[list, int]:
+    """:func:`loop_program` for variants of one loop: the setpoints are sampled once for all.
+
+    The loops must share their velocity and position periods (the setpoint table's timing).
+    """
     from ..loop import SetpointTable, servo_program
 
-    h = loop.base_period
+    if not loops:
+        raise ModelError("no servo loop to simulate")
+    first = loops[0]
+    h = first.base_period
+    Np = first.position_ratio
+    for v, loop in enumerate(loops):
+        if loop.base_period != h or loop.position_ratio != Np:
+            raise ModelError(f"variant {v}: the loop periods differ from variant 0's "
+                             f"({loop.base_period:g} s / {loop.position_ratio} against {h:g} s / {Np})",
+                             path=f"axes.{loop.axis}.controller")
     n_steps = int(math.floor(duration / h + 1e-9))
     if n_steps < 2:
         raise ModelError(f"the duration {duration:g} s is shorter than two velocity-loop periods ({h:g} s)",
                          path="duration", value=duration)
-    ctrl = loop.controller
-    for key, delay in (("position_delay", ctrl.position_delay * ctrl.position_period),
-                       ("velocity_delay", ctrl.velocity_delay * ctrl.velocity_period),
-                       ("feedforward_delay", ctrl.feedforward_delay)):
-        if delay >= duration:
-            raise ModelError(f"the delay ({delay:g} s) is not shorter than the run ({duration:g} s)",
-                             path=f"axes.{loop.axis}.controller.{key}", value=getattr(ctrl, key))
-    Np = loop.position_ratio
+    for loop in loops:
+        ctrl = loop.controller
+        for key, delay in (("position_delay", ctrl.position_delay * ctrl.position_period),
+                           ("velocity_delay", ctrl.velocity_delay * ctrl.velocity_period),
+                           ("feedforward_delay", ctrl.feedforward_delay)):
+            if delay >= duration:
+                raise ModelError(f"the delay ({delay:g} s) is not shorter than the run ({duration:g} s)",
+                                 path=f"axes.{loop.axis}.controller.{key}", value=getattr(ctrl, key))
     t_pos = np.arange(-(-n_steps // Np)) * Np * h
-    position, velocity, acceleration = profile.evaluate(t_pos)
-    table = SetpointTable(position, velocity, acceleration)
-    return servo_program(loop, table, nonlinear=nonlinear), n_steps
+    table = SetpointTable(*profile.evaluate(t_pos))
+    return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
 
 
 def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True) -> TimeSeries:
@@ -128,11 +146,7 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: f
     """
     from .kernel import run_batch
 
-    programs = []
-    n_steps = 0
-    for loop in loops:
-        program, n_steps = loop_program(loop, profile, duration, nonlinear=nonlinear)
-        programs.append(program)
+    programs, n_steps = loop_programs(loops, profile, duration, nonlinear=nonlinear)
     sensors = [f"sensor.{loop.controller.position_sensor}" for loop in loops]
     if len(set(sensors)) != 1:
         raise ModelError("the variants of a batch must share their position sensor", path="controller.position_sensor")

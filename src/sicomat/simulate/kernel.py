@@ -176,7 +176,7 @@ def bare_loop(Phi, Gamma, K, n_steps):
     return x
 
 
-@njit(cache=True, inline='always')
+@njit(cache=True, error_model="numpy", inline='always')
 def _propagate(PGT, c, lev, z, out, nx):
     """``out[:nx] = PGT[c, lev].T @ z`` (``z = [x; u; f]``; column-wise, vectorisable).
 
@@ -194,7 +194,7 @@ def _propagate(PGT, c, lev, z, out, nx):
             out[i] += PGT[c, lev, j, i] * zj
 
 
-@njit(cache=True, inline='always')
+@njit(cache=True, error_model="numpy", inline='always')
 def _holding_force(Lz, c, j, z):
     """Constraint force of link ``j`` in configuration ``c``: ``Lz[c, j] @ z``."""
     s = 0.0
@@ -203,7 +203,7 @@ def _holding_force(Lz, c, j, z):
     return s
 
 
-@njit(cache=True, inline='always')
+@njit(cache=True, error_model="numpy", inline='always')
 def _holding_forces(Lz, c, stuck, z, hold):
     """``hold[j] = Lz[c, j] @ z`` for the stuck links ``j`` (the others are left alone)."""
     for j in range(stuck.shape[0]):
@@ -211,7 +211,7 @@ def _holding_forces(Lz, c, stuck, z, hold):
             hold[j] = _holding_force(Lz, c, j, z)
 
 
-@njit(cache=True, inline='always')
+@njit(cache=True, error_model="numpy", inline='always')
 def _has_event(zc, c, stuck, dirn, Lz, G, static, nx, hold):
     """A sliding link's velocity opposes its direction, or a stuck link's force exceeds static.
 
@@ -233,7 +233,7 @@ def _has_event(zc, c, stuck, dirn, Lz, G, static, nx, hold):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     """Stick / slip decision at an event; projects the state, updates ``z``'s friction part.
 
@@ -284,7 +284,7 @@ def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     return cand
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, coulomb, nx, nu,
                          max_events, hold):
     """Advance ``z`` over one base step whose full-step candidate ``zc`` contains an event.
@@ -339,7 +339,7 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
     return cfg, n_events
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _current_limit(w, i_peak, u_max, R, ke, wl):
     """Admissible current interval ``[lo, hi]`` at speed ``w`` (see :class:`CurrentLimit`)."""
     lo, hi = -np.inf, np.inf
@@ -375,7 +375,7 @@ def _current_limit(w, i_peak, u_max, R, ke, wl):
     return lo, hi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
               op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, table, n_delay,
               in_slots, out_slots, fr_slots, rec_slots, n_slots,
