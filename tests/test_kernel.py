@@ -583,7 +583,7 @@ def test_bare_loop_matches_numpy():
 # ------------------------------------------------------------------- discretisation by squaring
 
 def test_every_level_matches_the_matrix_exponential():
-    # odd levels (and levels 0, 1) are squares of finer levels: each must still be expm's value
+    # levels 9, 8, 6, 5, 3, 2, 0 are squares of finer levels: each must still be expm's value
     A, B, _ = _two_mass(k=4.0e5, c=20.0)                 # stiff: ||A h|| well above 1
     cont = p.ContinuousPart(A=A, B=B, C=np.zeros((0, 4)), D=np.zeros((0, 1)), F=B.copy(),
                             G=np.array([[0.0, 0.0, 1.0, 0.0]]), coulomb=np.array([1.0]),

@@ -242,21 +242,23 @@ def constrained_dynamics(part: ContinuousPart, mask: int) -> ConstrainedDynamics
 
 
 def _direct_levels(levels: int) -> list[int]:
-    """The levels whose ZOH is a matrix exponential (the others are squares, see :func:`_zoh`)."""
-    return [lev for lev in range(min(2, levels), levels + 1) if lev % 2 == 0 or lev == levels]
+    """The levels whose ZOH is a matrix exponential: every third from the finest (the others are
+    one or two squarings away, see :func:`_zoh`)."""
+    return sorted(range(levels, -1, -3))
 
 
 def _zoh(PE: np.ndarray, step: float, levels: int) -> np.ndarray:
     """ZOH of stacked ``ẋ = PE [x; w]`` (shape ``(..., nx, nx + nw)``) at ``step / 2**l``.
 
     Returns ``E`` of shape ``(..., levels + 1, n, n)``, ``n = nx + nw``:
-    ``E[..., l, :, :] = expm([[PE], [0]] step / 2**l) = [[Phi, Gamma], [0, I]]``. The even levels
-    from 2 on and the finest one are matrix exponentials; the others are the square of the next
-    finer level (``E(2t) = E(t)²``): an odd level one squaring from an exponential, levels 1 and 0
-    one and two squarings from level 2. That keeps the accuracy of an exponential at every level
-    (``expm`` itself scales and squares: for the 5M4S servo it computes level 0 as level 2 squared
-    twice), whereas a chain of squarings from the finest level loses about ten times that; it
-    costs less than half of an exponential per level.
+    ``E[..., l, :, :] = expm([[PE], [0]] step / 2**l) = [[Phi, Gamma], [0, I]]``. Every third
+    level from the finest down is a matrix exponential (10, 7, 4, 1 for ten levels); the two
+    levels above each are its square and the square of that (``E(2t) = E(t)²``), level 0 the square
+    of level 1. No level is more than two squarings from an exponential, which keeps the accuracy of
+    an exponential at every level (``expm`` itself scales and squares: for the 5M4S servo it
+    computes the whole step as a quarter step squared twice), whereas a chain of squarings from the
+    finest level loses about ten times that on a stiff part; it costs less than half of an
+    exponential per level.
     """
     nx, n = PE.shape[-2:]
     lead = PE.shape[:-2]

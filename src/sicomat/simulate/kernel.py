@@ -195,12 +195,25 @@ def _propagate(PGT, c, lev, z, out, nx):
 
 
 @njit(cache=True, error_model="numpy", inline='always')
+def _dot(a, b, n):
+    """``a[:n] @ b[:n]`` in four partial sums: one chain of additions would wait on each one's latency
+    (these dot products decide stick and slip at every step)."""
+    s0 = s1 = s2 = s3 = 0.0
+    m = n - n % 4
+    for i in range(0, m, 4):
+        s0 += a[i] * b[i]
+        s1 += a[i + 1] * b[i + 1]
+        s2 += a[i + 2] * b[i + 2]
+        s3 += a[i + 3] * b[i + 3]
+    for i in range(m, n):
+        s0 += a[i] * b[i]
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, error_model="numpy", inline='always')
 def _holding_force(Lz, c, j, z):
     """Constraint force of link ``j`` in configuration ``c``: ``Lz[c, j] @ z``."""
-    s = 0.0
-    for i in range(z.shape[0]):
-        s += Lz[c, j, i] * z[i]
-    return s
+    return _dot(Lz[c, j], z, z.shape[0])
 
 
 @njit(cache=True, error_model="numpy", inline='always')
@@ -224,12 +237,8 @@ def _has_event(zc, c, stuck, dirn, Lz, G, static, nx, hold):
             hold[j] = lam
             if abs(lam) > static[j]:
                 return True
-        else:
-            v = 0.0
-            for i in range(nx):
-                v += G[j, i] * zc[i]
-            if dirn[j] * v < 0.0:
-                return True
+        elif dirn[j] * _dot(G[j], zc, nx) < 0.0:
+            return True
     return False
 
 
@@ -248,12 +257,8 @@ def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     for j in range(nf):
         if stuck[j]:
             cand |= 1 << j
-        else:
-            v = 0.0
-            for i in range(nx):
-                v += G[j, i] * z[i]
-            if dirn[j] * v <= 0.0:
-                cand |= 1 << j
+        elif dirn[j] * _dot(G[j], z, nx) <= 0.0:    # as in _has_event: same sum, same sign
+            cand |= 1 << j
     while True:
         for i in range(nx):
             s = 0.0
@@ -427,9 +432,7 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     # links at zero sliding velocity start stuck
     cfg = 0
     for j in range(nf):
-        v = 0.0
-        for i in range(nx):
-            v += G[j, i] * z[i]
+        v = _dot(G[j], z, nx)
         if v == 0.0:
             stuck[j] = True
             cfg |= 1 << j
