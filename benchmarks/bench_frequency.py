@@ -39,7 +39,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._common import EXAMPLE_5M4S, interleaved, openblas_note, speedup, table  # noqa: E402
+from benchmarks._common import EXAMPLE_5M4S, interleaved, speedup, table  # noqa: E402
 
 import warnings  # noqa: E402
 from typing import Any, Callable  # noqa: E402

@@ -51,8 +51,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._common import (EXAMPLE_5M4S, fmt_s, interleaved, openblas_note,  # noqa: E402
-                                speedup, table)
+from benchmarks._common import EXAMPLE_5M4S, fmt_s, interleaved, speedup, table  # noqa: E402
 
 import dataclasses  # noqa: E402
 import time  # noqa: E402

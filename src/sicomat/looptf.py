@@ -17,9 +17,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .controller import DiscreteSS, difference_block, filter_block
+from .controller import DiscreteSS, filter_block
 from .errors import ModelError
-from .frequency import FrequencyResponse, modal_form, response_at, sampled_response, zoh_matrices
+from .frequency import FrequencyResponse, modal_form, response_at, zoh_matrices
 
 if TYPE_CHECKING:  # pragma: no cover
     from .loop import ServoLoop

@@ -157,7 +157,7 @@ def modal_analysis(mech: "Mechanics") -> ModalResult:
     [0.0, 2.0]
     """
     n = mech.n
-    M, K, D = mech.mass, mech.stiffness, mech.damping
+    M, D = mech.mass, mech.damping
     omega, shapes, r = _undamped(mech)
     poles, vectors = np.linalg.eig(mech.state_space().A)
     freq, zeta, damped = _match_poles(shapes, omega, r, poles, vectors[:n], M, D)
