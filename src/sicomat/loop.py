@@ -281,20 +281,24 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
 
     pos_sensor = mech.sensor(ctrl.position_sensor)
     vel_sensor = mech.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
+    analog = ctrl.velocity_loop == "continuous"
     # ---- sampling at the velocity period (a sensor shared by both loops is sampled once)
-    if vel_sensor.kind == "position":
+    if vel_sensor.kind == "position" and not analog:
         quantize(f"sensor.{vel_sensor.name}", "velocity.sampled", vel_sensor.step, 1)
 
     # ---- position loop (period Np): setpoints, sampled feedback, P law, computation delay
     for column, name in enumerate(("setpoint.position", "setpoint.velocity", "setpoint.acceleration")):
         ops.append(p.Setpoint(period=Np, column=column, output=s(name)))
-    if vel_sensor.name == pos_sensor.name and vel_sensor.kind == "position":
+    if ctrl.position_loop == "continuous":
+        s.alias("position.sampled", f"sensor.{pos_sensor.name}")     # read continuously, unquantized
+    elif vel_sensor.name == pos_sensor.name and vel_sensor.kind == "position" and not analog:
         s.alias("position.sampled", "velocity.sampled")
     else:
         quantize(f"sensor.{pos_sensor.name}", "position.sampled", pos_sensor.step, Np)
-    combine("position.output", [("setpoint.position", loop.Kv), ("position.sampled", -loop.Kv / loop.position_gain)],
-            Np)
-    delay("position.output", "velocity.command_fb", ctrl.position_delay, Np)
+    if ctrl.position_loop == "discrete":
+        combine("position.output", [("setpoint.position", loop.Kv),
+                                    ("position.sampled", -loop.Kv / loop.position_gain)], Np)
+        delay("position.output", "velocity.command_fb", ctrl.position_delay, Np)
 
     # ---- velocity loop (every base step), in current units from the controller's output on
     ff_samples = int(round(ctrl.feedforward_delay / h))
@@ -302,7 +306,11 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
         delay("setpoint.velocity", "feedforward.velocity", ff_samples, 1)
     if ctrl.acceleration_feedforward:
         delay("setpoint.acceleration", "feedforward.acceleration", ff_samples, 1)
-    combine("velocity.command", [("velocity.command_fb", 1.0), ("feedforward.velocity", ctrl.velocity_feedforward)], 1)
+    if ctrl.position_loop == "discrete":
+        combine("velocity.command", [("velocity.command_fb", 1.0),
+                                     ("feedforward.velocity", ctrl.velocity_feedforward)], 1)
+    if analog:
+        return _analog_program(loop, plant, setpoints, s, ops, read_rows=rows, links=links, nonlinear=nonlinear)
     if vel_sensor.kind == "velocity":
         gain(f"sensor.{vel_sensor.name}", "velocity.raw", 1.0 / loop.velocity_gain, 1)
     else:
@@ -378,13 +386,48 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
                            aliases=dict(s.aliases))
 
 
+def _analog_program(loop: ServoLoop, plant: "Plant", setpoints: SetpointTable, s: _Slots, ops: list, *,
+                    read_rows: list[int], links: list, nonlinear: bool) -> "HybridProgram":
+    """The program of a loop whose velocity loop (and maybe position loop) is continuous: those
+    loops join the continuous part (:mod:`sicomat.analog`), the setpoints and a discrete position
+    loop stay ops. Drive limits act inside the analog loop and are not simulated (see docs/servo.md)."""
+    from .analog import analog_loop
+    from .simulate import program as p
+
+    mech = loop.mechanics
+    n = mech.n
+    closed = analog_loop(loop, plant)
+    nx, nc = plant.n_states, closed.n_controller
+    for name in closed.inputs:          # feedforward inputs not used by the loop read a zero slot
+        s(name)
+    rows = [np.concatenate([plant.C[i], np.zeros(nc + len(closed.inputs))]) for i in read_rows]
+    names = [plant.outputs[i] for i in read_rows] + list(closed.outputs)
+    CD = np.array(rows + list(closed.outputs.values()))
+    s.alias("current.reference", "current.command")
+    m_inv = 1.0 / np.diag(mech.mass)
+    F = np.zeros((nx + nc, len(links)))
+    G = np.zeros((len(links), nx + nc))
+    for j, link in enumerate(links):
+        F[n: 2 * n, j] = m_inv * link.g
+        G[j, n: 2 * n] = link.g
+    continuous = p.ContinuousPart(
+        A=closed.A, B=closed.B, C=CD[:, : nx + nc], D=CD[:, nx + nc:], F=F, G=G,
+        coulomb=np.array([link.coulomb for link in links]), static=np.array([link.static for link in links]),
+        x0=np.zeros(nx + nc), input_slots=tuple(s(name) for name in closed.inputs),
+        output_slots=tuple(s(name) for name in names),
+        friction_slots=tuple(s(f"friction.{link.name}") for link in links))
+    return p.HybridProgram(step=loop.base_period, slot_names=tuple(s.names), continuous=continuous,
+                           ops=tuple(ops), table=_table(setpoints), record=tuple(range(len(s.names))),
+                           aliases=dict(s.aliases))
+
+
 def derived_signals(loop: ServoLoop, signals: dict[str, np.ndarray], fine_setpoint: np.ndarray,
                     states: np.ndarray) -> dict[str, np.ndarray]:
     """Signals computed after a run rather than at every step: every output of the continuous part
     (from the states, shape ``(n_steps, nx)``), the setpoint at the base step and the following
     errors against it, the measured position and position error, the effort command."""
     plant = servo_plant(loop)
-    outputs = states @ plant.C.T
+    outputs = states[:, : plant.n_states] @ plant.C.T      # analog loops append controller states
     out = {name: outputs[:, i] for i, name in enumerate(plant.outputs)}
     position = out[f"sensor.{loop.controller.position_sensor}"] / loop.position_gain
     out.update({"setpoint.fine": fine_setpoint,

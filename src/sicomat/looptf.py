@@ -80,8 +80,13 @@ class LoopAnalysis:
         """Discretise the plant of ``loop`` at the velocity period."""
         from .loop import servo_plant
 
-        plant = servo_plant(loop)
         ctrl = loop.controller
+        if ctrl.velocity_loop == "continuous":
+            raise ModelError("the frequency analysis (bode, margins, tune) models sampled loops exactly; a "
+                             "continuous velocity loop is simulated but not analysed yet: analyse it as a "
+                             "discrete loop with a short velocity_period", path=f"axes.{loop.axis}.controller."
+                             "velocity_loop", value=ctrl.velocity_loop)
+        plant = servo_plant(loop)
         Phi, Gamma = zoh_matrices(plant.A, plant.B, ctrl.velocity_period)
         vel = loop.mechanics.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
         return cls(loop, Phi, Gamma, plant.C[plant.outputs.index(f"sensor.{ctrl.position_sensor}")],

@@ -132,6 +132,12 @@ class ControllerSpec(Spec):
     of the velocity period), computation delays in samples of each loop.
     Feedback: ``position_sensor`` and ``velocity_sensor`` name sensors of the mechanics; a position
     sensor used for velocity is differenced at the velocity period, as a CNC does.
+    Time domain of each loop: ``velocity_loop`` and ``position_loop`` are ``"discrete"`` (sampled,
+    the CNC) or ``"continuous"`` (an analog loop, e.g. a drive's analog velocity loop behind a
+    ±10 V command; a continuous position loop needs a continuous velocity loop). A continuous loop
+    has no computation delay, quantization or sampling of its own: its period is then only the
+    step at which the simulator samples it (``velocity_period``) or at which the interpolator hands
+    it setpoints (``position_period``). See ``docs/servo.md``.
     """
 
     type: Literal["P-PI", "P-IP"] = "P-PI"
@@ -153,6 +159,8 @@ class ControllerSpec(Spec):
     command_bits: int | None = Field(default=None, ge=2, le=32)
     velocity_filter: FilterSpec | None = None
     current_filters: list[FilterSpec] = Field(default_factory=list)
+    velocity_loop: Literal["discrete", "continuous"] = "discrete"
+    position_loop: Literal["discrete", "continuous"] = "discrete"
 
     @model_validator(mode="before")
     @classmethod
@@ -164,18 +172,40 @@ class ControllerSpec(Spec):
                 raise fail(str(exc), "Kp", data["Kp"]) from None
         return data
 
+    @model_validator(mode="before")
+    @classmethod
+    def _continuous_delays(cls, data: Any) -> Any:
+        """A continuous loop computes without delay: its delay defaults to 0 instead of 1 sample."""
+        if isinstance(data, dict):
+            for loop in ("velocity", "position"):
+                if data.get(f"{loop}_loop") == "continuous" and f"{loop}_delay" not in data:
+                    data = {**data, f"{loop}_delay": 0}
+        return data
+
     @model_validator(mode="after")
     def _consistent(self) -> "ControllerSpec":
         if (self.Kp is None) == (self.Kp_normalized is None):
             raise fail("give exactly one of 'Kp' (physical units) or 'Kp_normalized' (1/s)", "Kp", self.Kp)
         if self.velocity_period <= 0 or self.position_period <= 0:
-            raise fail("sample periods must be > 0 (continuous loops are not supported by the simulator yet)",
+            raise fail("sample periods must be > 0 (for an analog loop set velocity_loop or position_loop "
+                       "= 'continuous' and keep its period as the simulator's step)",
                        "velocity_period" if self.velocity_period <= 0 else "position_period",
                        self.velocity_period if self.velocity_period <= 0 else self.position_period)
         ratio = self.position_period / self.velocity_period
         if abs(ratio - round(ratio)) > 1e-9 * max(ratio, 1.0) or round(ratio) < 1:
             raise fail("the position period must be a whole multiple of the velocity period {tv} s",
                        "position_period", self.position_period, tv=self.velocity_period)
+        if self.position_loop == "continuous" and self.velocity_loop != "continuous":
+            raise fail("a continuous position loop needs a continuous velocity loop (a sampled inner loop "
+                       "inside an analog outer loop is not a cascade a drive builds); set velocity_loop = "
+                       "'continuous' or position_loop = 'discrete'", "position_loop", self.position_loop)
+        for loop in ("velocity", "position"):
+            if getattr(self, f"{loop}_loop") == "continuous" and getattr(self, f"{loop}_delay"):
+                raise fail("a continuous loop has no computation delay: expected 0 samples (or a "
+                           f"discrete {loop}_loop)", f"{loop}_delay", getattr(self, f"{loop}_delay"))
+        if self.velocity_loop == "continuous" and self.command_bits is not None:
+            raise fail("command_bits quantizes the current command of a discrete velocity loop; a "
+                       "continuous velocity loop has no DAC of its own", "command_bits", self.command_bits)
         return self
 
 

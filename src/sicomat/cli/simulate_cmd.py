@@ -42,7 +42,7 @@ def simulate_payload(series) -> dict[str, Any]:
     m = series.metrics
     return {"axis": series.info["axis"], **m.to_dict(), "samples": series.info["samples"],
             "step_s": series.info["step"], "duration_s": float(series.info["samples"] * series.info["step"]),
-            "wall_time_s": series.info["wall_time_s"]}
+            "wall_time_s": series.info["wall_time_s"], "notes": list(series.info.get("notes", []))}
 
 
 def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True):

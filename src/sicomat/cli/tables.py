@@ -124,7 +124,10 @@ def print_metrics(axis: str, payload: dict[str, Any]) -> None:
                              ("rise_time", 1e3, "ms"), ("settling_time", 1e3, "ms")):
         value = payload[key]
         table.add_row(key, "-" if value is None else f"{value * scale:.4g} {unit}")
-    Console(highlight=False).print(table)
+    console = Console(highlight=False)
+    console.print(table)
+    for note in payload.get("notes", []):
+        console.print(f"note: {note}")
 
 
 def print_margins(axis: str, margins: dict[str, Any], note: str | None = None) -> None:

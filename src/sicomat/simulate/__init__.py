@@ -98,7 +98,18 @@ def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinea
     metrics = step_metrics(result.time, signals["setpoint.fine"], actual, profile.distance, start=profile.breaks[0])
     return TimeSeries(time=result.time, signals=signals, metrics=metrics,
                       info={"wall_time_s": wall, "samples": n_steps, "step": loop.base_period,
-                            "axis": loop.axis})
+                            "axis": loop.axis, "notes": simulation_notes(loop, nonlinear)})
+
+
+def simulation_notes(loop: "ServoLoop", nonlinear: bool = True) -> list[str]:
+    """What the simulation of ``loop`` leaves out although the model file gives it."""
+    drv, ctrl = loop.drive, loop.controller
+    notes = []
+    if nonlinear and ctrl.velocity_loop == "continuous" and (np.isfinite(drv.i_peak) or np.isfinite(drv.u_max)):
+        notes.append("the velocity loop is continuous: the drive's current and voltage limits (and the "
+                     "anti-windup) act inside it and are not simulated; the loop is linear up to the plant's "
+                     "friction")
+    return notes
 
 
 

@@ -1,0 +1,161 @@
+"""Continuous (analog) velocity and position loops, against closed loops built with python-control."""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+import pytest
+
+from sicomat import machine_from_dict
+from sicomat.errors import ModelError
+from sicomat.loop import build_servo_loop
+from sicomat.setpoints import trapezoid_profile
+from sicomat.simulate import simulate
+
+M1, M2, K, C = 10.0, 30.0, 2.0e6, 500.0     # motor-side mass, table, transmission
+KT, TAU = 50.0, 2.0e-4
+KP_NORM, TI, KV = 50.0, 0.02, 12.0
+H = 2.0e-4
+PROFILE = trapezoid_profile(2e-3, 0.05, 1.0)
+DURATION = 0.25
+
+
+def _machine(**controller):
+    return machine_from_dict({"axes": {"X": {
+        "mechanics": {"type": "chain", "masses": [M1, M2], "stiffnesses": [K], "dampings": [C]},
+        "drive": {"force_constant": KT, "time_constant": TAU},
+        "controller": {"position_sensor": "last", "velocity_sensor": "last", "Kv": KV, "Kp_normalized": KP_NORM,
+                       "Ti": TI, "position_period": H, "velocity_period": H, "velocity_loop": "continuous",
+                       **controller}}}})
+
+
+def _velocity_loop(structure="P-PI", current_filter=None):
+    """v_cmd -> (x2, v2) with the analog PI (or IP) closed around drive + mechanics, by python-control."""
+    A = np.array([[0, 0, 1, 0], [0, 0, 0, 1],
+                  [-K / M1, K / M1, -C / M1, C / M1], [K / M2, -K / M2, C / M2, -C / M2]])
+    mech = control.ss(A, np.array([[0], [0], [1 / M1], [0]]), np.array([[0, 1, 0, 0], [0, 0, 0, 1]]), 0)
+    actuation = control.tf([KT], [TAU, 1])
+    if current_filter is not None:
+        actuation = actuation * current_filter
+    plant = control.series(actuation, mech)                 # current command -> (x2, v2)
+    kp = KP_NORM * (M1 + M2)                                 # physical gain: normalised x rigid mass
+    if structure == "P-PI":
+        law = control.ss(control.tf([kp * TI, kp], [TI * KT, 0]))   # (v_cmd - v2) -> current
+        return control.feedback(control.series(law, plant), np.array([[0.0, 1.0]]))
+    # IP: u = (Kp/Ti) ∫(v_cmd - v2) - Kp v2
+    integral = control.ss(control.tf([kp], [TI * KT, 0]))
+    inner = control.feedback(plant, np.array([[0.0, kp / KT]]))      # -Kp v2 / Kt around the plant
+    return control.feedback(control.series(integral, inner), np.array([[0.0, 1.0]]))
+
+
+def _setpoints(n):
+    return PROFILE.evaluate(np.arange(n) * H)[0]
+
+
+def _ours(**controller):
+    series = simulate(build_servo_loop(_machine(**controller)), PROFILE, DURATION, nonlinear=False)
+    return series.signals["sensor.last"], series
+
+
+@pytest.mark.parametrize("structure", ["P-PI", "P-IP"])
+def test_continuous_velocity_loop_under_a_sampled_position_loop_is_exact(structure):
+    ours, series = _ours(type=structure, position_delay=0)
+    n = ours.size
+    vel = control.c2d(_velocity_loop(structure), H, "zoh")      # the held velocity command: exact ZOH
+    Phi, Gam, Cx = (np.asarray(m) for m in (vel.A, vel.B, vel.C[:1]))
+    x, r, ref = np.zeros(Phi.shape[0]), _setpoints(n), np.empty(n)
+    for k in range(n):
+        ref[k] = (Cx @ x)[0]
+        v_cmd = KV * (r[k] - ref[k])                              # the sampled P law, no delay
+        x = Phi @ x + Gam[:, 0] * v_cmd
+    assert np.max(np.abs(ours - ref)) <= 1e-9 * np.max(np.abs(ref))
+    assert series.info["notes"] == []                             # no drive limits in this model
+
+
+def test_fully_continuous_loop_is_exact_with_held_setpoints():
+    ours, _ = _ours(position_loop="continuous")
+    n = ours.size
+    closed = control.feedback(KV * _velocity_loop(), np.array([[1.0, 0.0]]))   # x_ref -> (x2, v2)
+    disc = control.c2d(closed, H, "zoh")                        # setpoints held by the interpolator
+    ref = control.forced_response(disc, T=np.arange(n) * H, U=_setpoints(n)).outputs[0]
+    assert np.max(np.abs(ours - ref)) <= 1e-9 * np.max(np.abs(ref))
+
+
+def test_continuous_current_filter_is_the_unwarped_transfer_function():
+    f, zeta = 900.0, 0.4
+    ours, _ = _ours(position_delay=0, current_filters=[{"type": "low-pass", "frequency": f, "damping": zeta}])
+    n = ours.size
+    w = 2 * np.pi * f
+    vel = control.c2d(_velocity_loop(current_filter=control.tf([w * w], [1, 2 * zeta * w, w * w])), H, "zoh")
+    Phi, Gam, Cx = (np.asarray(m) for m in (vel.A, vel.B, vel.C[:1]))
+    x, r, ref = np.zeros(Phi.shape[0]), _setpoints(n), np.empty(n)
+    for k in range(n):
+        ref[k] = (Cx @ x)[0]
+        x = Phi @ x + Gam[:, 0] * KV * (r[k] - ref[k])
+    assert np.max(np.abs(ours - ref)) <= 1e-9 * np.max(np.abs(ref))
+
+
+def test_analog_signals_are_named_and_consistent():
+    _, series = _ours(position_delay=0)
+    sig = series.signals
+    # the current command is the PI law of the recorded error and integral action
+    kp = KP_NORM * (M1 + M2)
+    assert np.allclose(sig["current.command"], (kp * sig["velocity.error"] + sig["velocity.integral"]) / KT,
+                       rtol=0, atol=1e-12 * np.max(np.abs(sig["current.command"])))
+    assert np.array_equal(sig["current.reference"], sig["current.command"])
+    # the analog loop reads the table's velocity, not a difference of the sampled position
+    assert "velocity.sampled" not in sig and "velocity.raw" not in sig
+    assert np.allclose(sig["velocity.measured"], sig["m2.v"], rtol=0, atol=1e-15)
+
+
+def test_drive_limits_inside_an_analog_loop_are_reported_as_not_simulated():
+    machine = machine_from_dict({"axes": {"X": {
+        "mechanics": {"type": "chain", "masses": [M1, M2], "stiffnesses": [K], "dampings": [C]},
+        "drive": {"force_constant": KT, "time_constant": TAU, "peak_current": 30.0},
+        "controller": {"position_sensor": "last", "Kv": KV, "Kp_normalized": KP_NORM, "Ti": TI,
+                       "position_period": H, "velocity_period": H, "velocity_loop": "continuous"}}}})
+    series = simulate(build_servo_loop(machine), PROFILE, 0.05)
+    assert any("not simulated" in note for note in series.info["notes"])
+
+
+@pytest.mark.parametrize("controller, key, fragment", [
+    ({"velocity_loop": "discrete", "position_loop": "continuous"}, "position_loop", "needs a continuous velocity"),
+    ({"velocity_delay": 1}, "velocity_delay", "no computation delay"),
+    ({"position_loop": "continuous", "position_delay": 2}, "position_delay", "no computation delay"),
+    ({"command_bits": 12}, "command_bits", "no DAC"),
+    ({"velocity_loop": "analog"}, "velocity_loop", "discrete"),
+])
+def test_bad_continuous_loop_settings(controller, key, fragment):
+    with pytest.raises(ModelError, match=fragment) as err:
+        _machine(**controller)
+    assert err.value.path == f"axes.X.controller.{key}"
+
+
+def test_frequency_analysis_refuses_a_continuous_loop_clearly():
+    from sicomat.looptf import LoopAnalysis
+
+    with pytest.raises(ModelError, match="not analysed yet") as err:
+        LoopAnalysis.of(build_servo_loop(_machine()))
+    assert err.value.path == "axes.X.controller.velocity_loop"
+
+
+def test_cli_simulates_an_analog_velocity_loop_and_refuses_to_analyse_it():
+    from typer.testing import CliRunner
+
+    from sicomat.cli.main import app
+
+    import json
+    from pathlib import Path
+
+    model = str(Path(__file__).resolve().parents[1] / "examples" / "paper_5m4s.toml")
+    runner = CliRunner()
+    analog = ["--set", "axes.X.controller.velocity_delay=0",      # the file gives 1 sample: first 0
+              "--set", "axes.X.controller.velocity_loop=continuous"]
+    result = runner.invoke(app, ["simulate", model, "--move", "5", "--json", *analog])
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    assert payload["max_following_error"] > 0 and any("not simulated" in n for n in payload["notes"])
+    result = runner.invoke(app, ["margins", model, *analog])
+    assert result.exit_code == 2
+    assert "velocity_loop" in result.output and "not analysed yet" in result.output
+    assert "Traceback" not in result.output
