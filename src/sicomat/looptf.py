@@ -82,7 +82,7 @@ class LoopAnalysis:
 
         ctrl = loop.controller
         if ctrl.velocity_loop == "continuous":
-            raise ModelError("the frequency analysis (bode, margins, tune) models sampled loops exactly; a "
+            raise ModelError("the loop analysis (bode, margins, tune, step) models sampled loops exactly; a "
                              "continuous velocity loop is simulated but not analysed yet: analyse it as a "
                              "discrete loop with a short velocity_period", path=f"axes.{loop.axis}.controller."
                              "velocity_loop", value=ctrl.velocity_loop)

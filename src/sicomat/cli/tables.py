@@ -78,6 +78,10 @@ def print_check(source: str, payload: dict[str, Any]) -> None:
         console.print(table)
         blocks = [f"{block}: {axis[block]['type']}" for block in ("drive", "controller", "trajectory")
                   if axis.get(block)]
+        ctrl = axis.get("controller") or {}
+        analog = [loop for loop in ("velocity", "position") if ctrl.get(f"{loop}_loop") == "continuous"]
+        if analog:
+            blocks[[b.split(":")[0] for b in blocks].index("controller")] += f" ({' and '.join(analog)} loop continuous)"
         if blocks:
             console.print("  servo blocks: " + ", ".join(blocks))
 
