@@ -10,6 +10,7 @@ so a new controller or drive type only adds a lowering here.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -142,6 +143,18 @@ class SetpointTable:
     position: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
+
+    @cached_property
+    def columns(self) -> np.ndarray:
+        """The kernel's table ``(3, n)``, shorter columns held at their last value (built once:
+        the programs of a batch share it)."""
+        columns = [self.position, self.velocity, self.acceleration]
+        length = max(len(c) for c in columns)
+        table = np.empty((3, length))
+        for i, c in enumerate(columns):
+            table[i, : len(c)] = c
+            table[i, len(c):] = c[-1]
+        return table
 
 
 class _Slots:
@@ -375,7 +388,7 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     else:
         s.alias("current.applied", "current.limited")
 
-    table = _table(setpoints)
+    table = setpoints.columns
     continuous = p.ContinuousPart(
         A=A, B=B, C=C, D=np.zeros((C.shape[0], 1)), F=F, G=G,
         coulomb=np.array([link.coulomb for link in links]), static=np.array([link.static for link in links]),
@@ -417,7 +430,7 @@ def _analog_program(loop: ServoLoop, plant: "Plant", setpoints: SetpointTable, s
         output_slots=tuple(s(name) for name in names),
         friction_slots=tuple(s(f"friction.{link.name}") for link in links))
     return p.HybridProgram(step=loop.base_period, slot_names=tuple(s.names), continuous=continuous,
-                           ops=tuple(ops), table=_table(setpoints), record=tuple(range(len(s.names))),
+                           ops=tuple(ops), table=setpoints.columns, record=tuple(range(len(s.names))),
                            aliases=dict(s.aliases))
 
 
@@ -446,11 +459,3 @@ def _filter(spec, period: float, path: str) -> DiscreteSS:
         raise ModelError(str(exc), path=path, value=spec.frequency) from None
 
 
-def _table(setpoints: SetpointTable) -> np.ndarray:
-    columns = [setpoints.position, setpoints.velocity, setpoints.acceleration]
-    length = max(len(c) for c in columns)
-    table = np.empty((3, length))
-    for i, c in enumerate(columns):
-        table[i, : len(c)] = c
-        table[i, len(c):] = c[-1]
-    return table

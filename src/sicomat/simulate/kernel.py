@@ -635,13 +635,13 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
 
 @njit(cache=True)
 def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, warmup,
-                    op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, table,
+                    op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, tables, tix,
                     n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots,
                     PGT, Lz, Proj, cont, out_ptr, out_col, out_val, G, coulomb, static, x0,
                     rec_out, x_final, status, k_bad):
     """:func:`_simulate` for every variant; variant ``v`` uses ``PGT[cont[v]]``,
     ``Lz[cont[v]]``, ``Proj[cont[v]]`` (variants with the same continuous part share its
-    discretisation)."""
+    discretisation) and the setpoint table ``tables[tix[v]]`` (usually one for all)."""
     nx = x0.shape[1]
     nf = coulomb.shape[1]
     states_dummy = np.zeros((1, nx))
@@ -651,12 +651,26 @@ def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, war
         c = cont[v]
         st, kb, _ = _simulate(
             n_steps, rec_every, False, max_events, limit_abs, limit_factor, warmup,
-            op_code, op_period, op_phase, op_ip, op_fp[v], idx, fdata[v], xb0[v], table[v],
+            op_code, op_period, op_phase, op_ip, op_fp[v], idx, fdata[v], xb0[v], tables[tix[v]],
             n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots, PGT[c], Lz[c], Proj[c],
             out_ptr, out_col, out_val[v], G[v], coulomb[v], static[v], x0[v], rec_out[v],
             states_dummy, fric_dummy, stuck_dummy, x_final[v])
         status[v] = st
         k_bad[v] = kb
+
+
+def _shared(arrays: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct arrays (by identity: the programs of one setpoint table share its array) stacked,
+    and each one's index among them."""
+    index: dict[int, int] = {}
+    distinct: list[np.ndarray] = []
+    tix = np.empty(len(arrays), dtype=np.int64)
+    for v, a in enumerate(arrays):
+        if id(a) not in index:
+            index[id(a)] = len(distinct)
+            distinct.append(a)
+        tix[v] = index[id(a)]
+    return np.ascontiguousarray(np.stack(distinct)), tix
 
 
 def _divergence_args(divergence_limit: float | None) -> tuple[float, float]:
@@ -850,7 +864,8 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
                              f"differs)")
     PG, Lz, Proj, cont = kernel_matrices(programs, first.links, int(levels))
     nums = {key: np.ascontiguousarray(np.stack([low.nums[key] for low in lows]))
-            for key in first.nums}
+            for key in first.nums if key != "table"}
+    tables, tix = _shared([low.nums["table"] for low in lows])
     s = first.struct
     out_ptr, out_col, out_val = sparse_outputs(nums["CD"])
     nv = len(programs)
@@ -864,7 +879,7 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
     _simulate_batch(
         n_steps, every, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP,
         s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
-        nums["fdata"], nums["xb0"], nums["table"], int(s["shapes"][5]), s["in_slots"],
+        nums["fdata"], nums["xb0"], tables, tix, int(s["shapes"][5]), s["in_slots"],
         s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, cont,
         out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"], rec,
         x_final, status, k_bad)
