@@ -36,9 +36,10 @@ class AnalogLoop:
     A : ndarray, shape (nx + nc, nx + nc)
     B : ndarray, shape (nx + nc, n_inputs)
     inputs : tuple of str
-        The held inputs ``r``: ``("velocity.command", "feedforward.acceleration")`` behind a discrete
-        position loop, ``("setpoint.position", "feedforward.velocity", "feedforward.acceleration")``
-        when the position loop is continuous too (axis units: m or rad, per s, per s²).
+        The held inputs ``r``: ``("velocity.command", "feedforward.effort")`` behind a discrete
+        position loop, ``("setpoint.position", "feedforward.velocity", "feedforward.effort")`` when
+        the position loop is continuous too (axis units: m or rad, per s; the feedforward effort in
+        N or N·m, added to the controller's output).
     outputs : dict of str to ndarray
         Controller signals as rows over ``[x; xc; r]``: ``velocity.measured``, ``velocity.error``,
         ``velocity.integral`` (the integral action, N or N·m), ``current.command`` (A, before the
@@ -60,15 +61,15 @@ def analog_loop(loop: "ServoLoop", plant: "Plant") -> AnalogLoop:
     The laws are those of the discrete loops without sampling: PI ``u = Kp e + ξ``, IP
     ``u = ξ − Kp v``, with ``dξ/dt = (Kp / Ti) e`` (``ξ`` the integral action in effort units),
     ``e = v_cmd − v`` in axis units; the current command ``u / kt`` plus the acceleration
-    feedforward ``a_ff · m_rigid / kt``, through the current filters (continuous, unwarped), is the
+    feedforward effort over ``kt``, through the current filters (continuous, unwarped), is the
     current loop's reference. A continuous position loop adds ``v_cmd = Kv (x_ref − x) + k_vff v_ref``.
     """
     ctrl, drv = loop.controller, loop.drive
     mech = loop.mechanics
     nx = plant.n_states
     position_analog = ctrl.position_loop == "continuous"
-    inputs = (("setpoint.position", "feedforward.velocity", "feedforward.acceleration") if position_analog
-              else ("velocity.command", "feedforward.acceleration"))
+    inputs = (("setpoint.position", "feedforward.velocity", "feedforward.effort") if position_analog
+              else ("velocity.command", "feedforward.effort"))
     vel_filter = [] if ctrl.velocity_filter is None else [_filter_ss(ctrl.velocity_filter)]
     cur_filters = [_filter_ss(spec) for spec in ctrl.current_filters]
     nc = sum(f[0].shape[0] for f in vel_filter + cur_filters) + 1
@@ -112,7 +113,7 @@ def analog_loop(loop: "ServoLoop", plant: "Plant") -> AnalogLoop:
     deriv[free[0]] = loop.Kp / loop.Ti * error
     free[0] += 1
     effort = loop.Kp * error + xi if ctrl.type == "P-PI" else xi - loop.Kp * v_meas
-    command = effort / drv.kt + ctrl.acceleration_feedforward * loop.m_rigid / drv.kt * r["feedforward.acceleration"]
+    command = (effort + r["feedforward.effort"]) / drv.kt
     applied = command
     for flt in cur_filters:
         applied = through(flt, applied)

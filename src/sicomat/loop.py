@@ -323,6 +323,8 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
         combine("velocity.command", [("velocity.command_fb", 1.0),
                                      ("feedforward.velocity", ctrl.velocity_feedforward)], 1)
     if analog:
+        if ctrl.acceleration_feedforward:
+            gain("feedforward.acceleration", "feedforward.effort", ctrl.acceleration_feedforward * loop.m_rigid, 1)
         return _analog_program(loop, plant, setpoints, s, ops, read_rows=rows, links=links, nonlinear=nonlinear)
     if vel_sensor.kind == "velocity":
         gain(f"sensor.{vel_sensor.name}", "velocity.raw", 1.0 / loop.velocity_gain, 1)

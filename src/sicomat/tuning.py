@@ -297,6 +297,7 @@ def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, s
         target was met and, if not, which and a suggested notch with the tuning repeated with it.
     """
     start = time.perf_counter()
+    LoopAnalysis.of(loop).require_sampled("the frequency approach (sicomat tune)")
     targets = targets or TuningTargets()
     if targets.velocity_crossover is None:
         f_meca = loop.mechanics.modes().f_meca_hz

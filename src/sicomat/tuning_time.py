@@ -72,6 +72,7 @@ def _step(A: np.ndarray, B: np.ndarray, C: np.ndarray, period: float, n: int) ->
 
 def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None = None) -> StepResponse:
     """Response of the measured velocity to a unit step of the velocity command."""
+    an.require_sampled("the time approach (step responses)")
     A, B, C = an.velocity_closed_loop(Kp, Ti)
     # drop the position integrator (it does not act on the velocity): keep the output row of v_meas
     T = an.loop.controller.velocity_period
@@ -103,6 +104,7 @@ def _step_with_marginal(A, B, C, period, n) -> StepResponse:
 
 def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: float | None = None) -> StepResponse:
     """Response of the measured position to a unit position step (position loop at Tp, lifted)."""
+    an.require_sampled("the time approach (step responses)")
     A, B, C = an.velocity_closed_loop(Kp, Ti)
     loop = an.loop
     Np = loop.position_ratio
@@ -183,6 +185,7 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
     start = time.perf_counter()
     t = targets or TimeTargets()
     an = LoopAnalysis.of(loop)
+    an.require_sampled("the time approach (step responses)")
     m = loop.m_rigid
     iterations: list[dict[str, Any]] = []
     notes: list[str] = []
