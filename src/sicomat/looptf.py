@@ -102,9 +102,9 @@ class LoopAnalysis:
     def require_sampled(self, what: str) -> None:
         """Refuse ``what`` (a tuning procedure of sampled loops) for an analog velocity loop."""
         if self.analog:
-            raise ModelError(f"{what} tunes sampled loops; a continuous velocity loop is simulated and analysed "
-                             f"(bode, margins) but not tuned automatically yet: tune it as a discrete loop with a "
-                             f"short velocity_period, then set the gains", value="continuous",
+            raise ModelError(f"{what} handles sampled loops; a continuous velocity loop is simulated, analysed "
+                             f"and tuned in frequency (sicomat tune) but not tuned automatically yet by step "
+                             f"responses: use sicomat tune", value="continuous",
                              path=f"axes.{self.loop.axis}.controller.velocity_loop")
 
     # ------------------------------------------------------------------ velocity loop (rate Tv)
@@ -231,6 +231,13 @@ class LoopAnalysis:
         H = response_at(form, z)
         return H[0, 0], H[0, 1]
 
+    def position_continuous(self, omega: np.ndarray, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray]:
+        """For a continuous position loop: the transfers at ``s = jω`` from the velocity command
+        and from the feedforward effort to the measured position, through the analog velocity loop."""
+        A, B, C = self.analog_closed_loop(Kp, Ti, self.loop.Kv)
+        H = _response(A, B, C[:1], 1j * np.asarray(omega, dtype=float))
+        return H[0, 0], H[0, 1]
+
     # ------------------------------------------------------------------ public
     def response(self, which: str, omega: np.ndarray | None = None, *, Kp: float | None = None,
                  Ti: float | None = None, Kv: float | None = None) -> FrequencyResponse:
@@ -258,9 +265,7 @@ class LoopAnalysis:
             return FrequencyResponse(omega, forward * act * meas / (1.0 + L), which, Tv,
                                      info={"input": "velocity command", "output": "measured velocity"})
         if Tp is None:         # a continuous position loop around the analog velocity loop
-            A, B, C = self.analog_closed_loop(Kp, Ti, Kv)
-            H = _response(A, B, C[:1], 1j * omega)
-            g_v, g_f = H[0, 0], H[0, 1]
+            g_v, g_f = self.position_continuous(omega, Kp, Ti)
             z, diff = np.exp(1j * omega * ctrl.position_period), 1j * omega
         else:
             g_v, g_f = self.position_lifted(omega, Kp, Ti)

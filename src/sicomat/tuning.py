@@ -141,7 +141,8 @@ def _finite(x: float) -> float | None:
 
 # --------------------------------------------------------------------------- rigid model, closed forms
 def equivalent_delay(loop: "ServoLoop") -> float:
-    """The lags of the digital velocity loop folded into one delay (s), for the rigid model.
+    """The lags of the velocity loop folded into one delay (s), for the rigid model (an analog loop
+    keeps only the current loop and the filters).
 
     ZOH ``Tv/2``, computation delay ``d_v·Tv``, the current loop ``τ`` (first order ≈ delay below
     its bandwidth), differencing of a position sensor ``Tv/2``, the forward-Euler integrator is
@@ -149,7 +150,7 @@ def equivalent_delay(loop: "ServoLoop") -> float:
     ``2(ζ_p − ζ_z)/ω``).
     """
     ctrl = loop.controller
-    T = ctrl.velocity_period
+    T = ctrl.velocity_period if ctrl.velocity_loop == "discrete" else 0.0    # an analog loop: no sampling
     delay = T / 2 + ctrl.velocity_delay * T + loop.drive.tau
     vel = loop.mechanics.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
     if vel.kind == "position":
@@ -209,6 +210,8 @@ def rigid_position_gain(m_rigid: float, kp: float, ti: float, velocity_delay: fl
 
 def _position_equivalent_delay(loop: "ServoLoop") -> float:
     ctrl = loop.controller
+    if ctrl.position_loop == "continuous":
+        return 0.0
     return ctrl.position_period / 2 + ctrl.position_delay * ctrl.position_period
 
 
@@ -264,7 +267,8 @@ class _Evaluator:
         _, _, act, meas = self.an.velocity_factors(self.omega_v, 1.0, 1.0)
         self.plant_v = act * meas
         T = loop.controller.velocity_period
-        self.integrator = T / (np.exp(1j * self.omega_v * T) - 1.0)
+        self.integrator = (1.0 / (1j * self.omega_v) if self.an.analog          # Kp/Ti · integrator
+                           else T / (np.exp(1j * self.omega_v * T) - 1.0))
         self.count = 0
 
     def velocity_gain(self, kp: float, ti: float) -> np.ndarray:
@@ -277,8 +281,10 @@ class _Evaluator:
 
     def position_base(self, kp: float, ti: float) -> np.ndarray:
         """The position loop gain for Kv = 1 (delay included)."""
-        g_v, _ = self.an.position_lifted(self.omega_p, kp, ti)
         ctrl = self.loop.controller
+        if ctrl.position_loop == "continuous":
+            return self.an.position_continuous(self.omega_p, kp, ti)[0]
+        g_v, _ = self.an.position_lifted(self.omega_p, kp, ti)
         z = np.exp(1j * self.omega_p * ctrl.position_period)
         return z ** (-ctrl.position_delay) * g_v
 
@@ -297,7 +303,6 @@ def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, s
         target was met and, if not, which and a suggested notch with the tuning repeated with it.
     """
     start = time.perf_counter()
-    LoopAnalysis.of(loop).require_sampled("the frequency approach (sicomat tune)")
     targets = targets or TuningTargets()
     if targets.velocity_crossover is None:
         f_meca = loop.mechanics.modes().f_meca_hz
@@ -326,8 +331,9 @@ def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, s
 
 
 def _check_targets(loop: "ServoLoop", t: TuningTargets) -> None:
-    nyq_v = np.pi / loop.controller.velocity_period
-    nyq_p = np.pi / loop.controller.position_period
+    ctrl = loop.controller
+    nyq_v = np.pi / ctrl.velocity_period if ctrl.velocity_loop == "discrete" else np.inf
+    nyq_p = np.pi / ctrl.position_period if ctrl.position_loop == "discrete" else np.inf
     if not 0 < t.velocity_crossover < nyq_v:
         raise ModelError(f"the velocity crossover must be between 0 and the velocity loop's Nyquist frequency "
                          f"{nyq_v:.4g} rad/s", path="--velocity-crossover", value=t.velocity_crossover)
