@@ -229,15 +229,39 @@ def test_frequency_tuning_of_an_analog_loop_reaches_its_targets_by_python_contro
         assert main_crossover(g.Kv * closed)[0] == pytest.approx(70.0, abs=1.0)
 
 
-def test_time_approach_refuses_an_analog_loop_clearly():
-    from sicomat.tuning_time import tune_time
+@pytest.mark.parametrize("position_loop", ["discrete", "continuous"])
+def test_step_responses_of_analog_loops_are_the_sampled_continuous_ones(position_loop):
+    from sicomat.looptf import LoopAnalysis
+    from sicomat.tuning_time import position_step, velocity_step
 
-    with pytest.raises(ModelError, match="not tuned automatically yet") as err:
-        tune_time(build_servo_loop(_machine()))
-    assert err.value.path == "axes.X.controller.velocity_loop"
+    loop = build_servo_loop(_machine(position_loop=position_loop, position_period=4 * H,
+                                     **({"position_delay": 1} if position_loop == "discrete" else {})))
+    an = LoopAnalysis.of(loop)
+    kp, ti = loop.Kp, loop.Ti
+    v = velocity_step(an, kp, ti, duration=0.05)
+    t = np.arange(v.response.size) * H
+    expected = control.step_response(_velocity_loop()[1, 0], T=t).outputs      # v_cmd -> v2, continuous
+    assert np.max(np.abs(v.response - expected)) < 1e-9 * np.max(np.abs(expected))
+    p = position_step(an, kp, ti, KV, duration=0.3)
+    if position_loop == "continuous":
+        t = np.arange(p.response.size) * H
+        expected = control.step_response(control.feedback(KV * _velocity_loop()[0, 0], 1), T=t).outputs
+    else:                                    # the sampled P law with one sample of delay, by python-control
+        disc = control.c2d(_velocity_loop()[0, 0], 4 * H, "zoh")
+        z = control.tf([1, 0], [1], 4 * H)
+        loop_gain = KV * disc / z
+        expected = control.step_response(control.feedback(loop_gain, 1), T=np.arange(p.response.size) * 4 * H).outputs
+    assert np.max(np.abs(p.response - expected)) < 1e-8 * np.max(np.abs(expected))
 
 
-def test_cli_simulates_analyses_and_tunes_an_analog_velocity_loop_but_step_refuses_it():
+def test_time_approach_tunes_an_analog_loop():
+    from sicomat.tuning_time import TimeTargets, tune_time
+
+    result = tune_time(build_servo_loop(_machine(velocity_sensor="first")), TimeTargets())
+    assert result.Kp > 0 and result.Kv > 0 and result.velocity.stable and result.position.stable
+
+
+def test_cli_simulates_analyses_and_tunes_an_analog_velocity_loop():
     from typer.testing import CliRunner
 
     from sicomat.cli.main import app
@@ -258,7 +282,5 @@ def test_cli_simulates_analyses_and_tunes_an_analog_velocity_loop_but_step_refus
     assert json.loads(result.stdout)
     result = runner.invoke(app, ["tune", model, "--json", *analog])
     assert result.exit_code == 0, result.output
-    result = runner.invoke(app, ["step", model, *analog])
-    assert result.exit_code == 2
-    assert "velocity_loop" in result.output and "not tuned automatically yet" in result.output
-    assert "Traceback" not in result.output
+    result = runner.invoke(app, ["step", model, "--json", *analog])
+    assert result.exit_code == 0, result.output

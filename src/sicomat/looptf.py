@@ -99,14 +99,6 @@ class LoopAnalysis:
         return cls(loop, Phi, Gamma, plant.C[plant.outputs.index(f"sensor.{ctrl.position_sensor}")],
                    plant.C[plant.outputs.index(f"sensor.{vel.name}")], vel.kind == "position", analog)
 
-    def require_sampled(self, what: str) -> None:
-        """Refuse ``what`` (a tuning procedure of sampled loops) for an analog velocity loop."""
-        if self.analog:
-            raise ModelError(f"{what} handles sampled loops; a continuous velocity loop is simulated, analysed "
-                             f"and tuned in frequency (sicomat tune) but not tuned automatically yet by step "
-                             f"responses: use sicomat tune", value="continuous",
-                             path=f"axes.{self.loop.axis}.controller.velocity_loop")
-
     # ------------------------------------------------------------------ velocity loop (rate Tv)
     def _blocks(self) -> tuple[list[DiscreteSS], DiscreteSS | None]:
         ctrl, T = self.loop.controller, self.loop.controller.velocity_period

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import AnalysisError
+from .frequency import zoh_matrices
 from .looptf import LoopAnalysis
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -71,11 +72,15 @@ def _step(A: np.ndarray, B: np.ndarray, C: np.ndarray, period: float, n: int) ->
 
 
 def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None = None) -> StepResponse:
-    """Response of the measured velocity to a unit step of the velocity command."""
-    an.require_sampled("the time approach (step responses)")
-    A, B, C = an.velocity_closed_loop(Kp, Ti)
-    # drop the position integrator (it does not act on the velocity): keep the output row of v_meas
+    """Response of the measured velocity to a unit step of the velocity command (an analog loop:
+    sampled at the velocity period, exactly: a step is held)."""
     T = an.loop.controller.velocity_period
+    if an.analog:
+        A, B, C = an.analog_closed_loop(Kp, Ti, an.loop.Kv)
+        A, B = zoh_matrices(A, B, T)
+    else:
+        A, B, C = an.velocity_closed_loop(Kp, Ti)
+    # the position integrator does not act on the velocity: keep the output row of v_meas
     n = int(round((duration or max(30 * Ti if Ti < 0.05 else 0.5, 0.1)) / T))
     return _step_with_marginal(A, B[:, 0], C[1], T, n)
 
@@ -103,14 +108,25 @@ def _step_with_marginal(A, B, C, period, n) -> StepResponse:
 
 
 def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: float | None = None) -> StepResponse:
-    """Response of the measured position to a unit position step (position loop at Tp, lifted)."""
-    an.require_sampled("the time approach (step responses)")
-    A, B, C = an.velocity_closed_loop(Kp, Ti)
+    """Response of the measured position to a unit position step (position loop at Tp, lifted; a
+    continuous position loop sampled at the velocity period)."""
     loop = an.loop
-    Np = loop.position_ratio
-    Ap = np.linalg.matrix_power(A, Np)
-    Bp = sum(np.linalg.matrix_power(A, i) @ B[:, 0] for i in range(Np))
-    d = loop.controller.position_delay
+    ctrl = loop.controller
+    if an.analog:
+        A, B, C = an.analog_closed_loop(Kp, Ti, Kv)
+        if ctrl.position_loop == "continuous":     # v_cmd = Kv (x_ref - x): close it, then sample exactly
+            T = ctrl.velocity_period
+            Ad, Bd = zoh_matrices(A - Kv * np.outer(B[:, 0], C[0]), Kv * B[:, :1], T)
+            n = int(round((duration or max(10.0 / max(Kv, 1e-3), 0.2)) / T))
+            return _step_with_marginal(Ad, Bd[:, 0], C[0], T, n)
+        Ap, Bp = zoh_matrices(A, B[:, :1], ctrl.position_period)
+        Bp = Bp[:, 0]
+    else:
+        A, B, C = an.velocity_closed_loop(Kp, Ti)
+        Np = loop.position_ratio
+        Ap = np.linalg.matrix_power(A, Np)
+        Bp = sum(np.linalg.matrix_power(A, i) @ B[:, 0] for i in range(Np))
+    d = ctrl.position_delay
     n_x = A.shape[0]
     # closed position loop with a delay line of d samples on the velocity command
     size = n_x + d
@@ -185,7 +201,6 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
     start = time.perf_counter()
     t = targets or TimeTargets()
     an = LoopAnalysis.of(loop)
-    an.require_sampled("the time approach (step responses)")
     m = loop.m_rigid
     iterations: list[dict[str, Any]] = []
     notes: list[str] = []

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -56,5 +57,16 @@ def load(model: Path, overrides: Optional[List[str]]):
 
 
 def emit_json(payload: dict[str, Any]) -> None:
-    """Write one JSON object to stdout (finite numbers only)."""
-    sys.stdout.write(json.dumps(payload, indent=2, allow_nan=False) + "\n")
+    """Write one JSON object to stdout; a non-finite number (an unstable loop's overshoot, a
+    missing margin) is written as ``null``: JSON has no infinity."""
+    sys.stdout.write(json.dumps(_finite(payload), indent=2, allow_nan=False) + "\n")
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
