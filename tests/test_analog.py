@@ -284,3 +284,21 @@ def test_cli_simulates_analyses_and_tunes_an_analog_velocity_loop():
     assert result.exit_code == 0, result.output
     result = runner.invoke(app, ["step", model, "--json", *analog])
     assert result.exit_code == 0, result.output
+
+
+def test_analog_loop_at_rest_holds_the_stuck_friction_with_its_integral_action():
+    """Coulomb friction keeps its true stick-slip inside an analog loop: at rest the table sticks and
+    the integral action is the force the friction holds."""
+    from pathlib import Path
+
+    import sicomat
+    from sicomat.setpoints import step_profile
+
+    model = Path(__file__).resolve().parents[1] / "examples" / "rigid_1m.toml"
+    machine = sicomat.load_model(model, ["axes.X.controller.velocity_delay=0",
+                                         "axes.X.controller.velocity_loop=continuous"])
+    series = simulate(build_servo_loop(machine), step_profile(1e-4), 0.4)
+    friction = series["friction.guides"][-1]
+    assert 0 < abs(friction) <= 40.0 + 1e-9                     # held within the static (= Coulomb) limit
+    assert series["velocity.integral"][-1] == pytest.approx(-friction, rel=0.02)
+    assert abs(series["table.v"][-1]) < 1e-12                   # stuck: exactly at rest
