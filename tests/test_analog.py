@@ -271,7 +271,7 @@ def test_cli_simulates_analyses_and_tunes_an_analog_velocity_loop():
 
     model = str(Path(__file__).resolve().parents[1] / "examples" / "paper_5m4s.toml")
     runner = CliRunner()
-    analog = ["--set", "axes.X.controller.velocity_delay=0",      # the file gives 1 sample: first 0
+    analog = ["--set", "axes.X.controller.velocity_delay=0",      # the file gives 1 sample
               "--set", "axes.X.controller.velocity_loop=continuous"]
     result = runner.invoke(app, ["simulate", model, "--move", "5", "--json", *analog])
     assert result.exit_code == 0, result.output

@@ -248,3 +248,14 @@ def test_overrides_copy_only_their_path_and_never_touch_the_input():
     with pytest.raises(ModelError, match="not a table"):
         _set_path(data, "f.g.h", 1, source="test")
     assert data["f"] == 4
+
+
+def test_overrides_are_validated_together_and_an_error_names_the_closest_one():
+    path = EXAMPLES_DIR / "paper_5m4s.toml"      # gives velocity_delay = 1 explicitly
+    loop_first = ["axes.X.controller.velocity_loop=continuous", "axes.X.controller.velocity_delay=0"]
+    for order in (loop_first, loop_first[::-1]):
+        assert load_model(path, order).axes["X"].controller.velocity_loop == "continuous"
+    with pytest.raises(ModelError) as err:       # the delay left at 1: the error sits at velocity_delay
+        load_model(path, ["axes.X.mechanics.bodies.load.mass=300 kg", "axes.X.controller.velocity_loop=continuous"])
+    assert err.value.source == "--set axes.X.controller.velocity_loop=continuous"
+    assert err.value.path == "axes.X.controller.velocity_delay"

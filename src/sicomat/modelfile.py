@@ -47,14 +47,28 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
     except tomllib.TOMLDecodeError as exc:
         raise ModelError(f"not a valid TOML file: {exc}", source=source) from None
     machine = machine_from_dict(data, source=source)
-    overrides = list(overrides)
-    if not overrides:
+    settings = [(item, *parse_override(item)) for item in overrides]
+    if not settings:
         return machine
-    for item in overrides:
-        key, value = parse_override(item)
+    for item, key, value in settings:
         data = _set_path(data, key, value, source=f"--set {item}")
-        machine = machine_from_dict(data, source=f"--set {item}")
-    return machine
+    # validated together, so that settings that only make sense together can come in any order
+    # (velocity_delay = 0 with velocity_loop = "continuous"); an error names the override closest to it
+    try:
+        return Machine.model_validate(data)
+    except ValidationError as exc:
+        where = (_translate(exc, None).path or "").split(".")
+        closest = max(settings, key=lambda s: (_shared_prefix(s[1].split("."), where), settings.index(s)))
+        raise _translate(exc, f"--set {closest[0]}") from None
+
+
+def _shared_prefix(a: list[str], b: list[str]) -> int:
+    n = 0
+    for x, y in zip(a, b):
+        if x != y:
+            break
+        n += 1
+    return n
 
 
 def machine_from_dict(data: Mapping[str, Any], source: str | None = None) -> Machine:
