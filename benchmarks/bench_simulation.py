@@ -373,7 +373,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     diff["max_abs_following_error_diff_rel_peak"] = diff["max_abs_following_error_diff_m"] / diff[
         "max_following_error_ours_m"]
 
-    batch = _batch(machine, loop, profile, N_VARIANTS, 1 if quick else 2)
+    batch = _batch(machine, loop, profile, N_VARIANTS, 1 if quick else 3)
 
     t_run = ours["run"]
     t_bare = ours["bare_loop"]
