@@ -113,35 +113,43 @@ class LoopAnalysis:
         ``s = jω`` for an analog velocity loop."""
         loop, ctrl = self.loop, self.loop.controller
         if self.analog:
-            return self._analog_factors(omega, Kp, Ti)
+            s = 1j * omega
+            plant = _continuous_response(self.Phi, self.Gamma, self.c_vel, s)
+            actuation = np.full(s.shape, 1.0 / loop.drive.kt, dtype=complex)
+            for spec in ctrl.current_filters:
+                actuation = actuation * _tf_at(spec, s)
+            integral = Kp / (Ti * s)
+        else:
+            T = ctrl.velocity_period
+            z = np.exp(1j * omega * T)
+            plant = _discrete_response(self.Phi, self.Gamma, self.c_vel, z)
+            actuation = z ** (-ctrl.velocity_delay) / loop.drive.kt
+            for block in self._blocks()[0]:
+                actuation = actuation * _ss_response(block, z)
+            integral = Kp * T / Ti / (z - 1.0)
+        return np.full(omega.shape, Kp, dtype=complex), integral, actuation, plant * self._measurement(omega)
+
+    def _measurement(self, omega: np.ndarray) -> np.ndarray:
+        """Velocity-sensor reading → measured velocity: the conversion to axis units, the
+        differencing of a position sensor (its exact derivative in an analog loop) and the velocity
+        filter."""
+        ctrl = self.loop.controller
+        measure = np.full(omega.shape, 1.0 / self.loop.velocity_gain, dtype=complex)
+        if self.analog:
+            s = 1j * omega
+            if self.differenced:
+                measure = measure * s
+            if ctrl.velocity_filter is not None:
+                measure = measure * _tf_at(ctrl.velocity_filter, s)
+            return measure
         T = ctrl.velocity_period
         z = np.exp(1j * omega * T)
-        plant = _discrete_response(self.Phi, self.Gamma, self.c_vel, z)
-        current, velocity = self._blocks()
-        actuation = z ** (-ctrl.velocity_delay) / loop.drive.kt
-        for block in current:
-            actuation = actuation * _ss_response(block, z)
-        measure = plant / loop.velocity_gain
         if self.differenced:
             measure = measure * (1.0 - 1.0 / z) / T
+        velocity = self._blocks()[1]
         if velocity is not None:
             measure = measure * _ss_response(velocity, z)
-        integral = Kp * T / Ti / (z - 1.0)
-        return np.full(z.shape, Kp, dtype=complex), integral, actuation, measure
-
-    def _analog_factors(self, omega: np.ndarray, Kp: float, Ti: float):
-        loop, ctrl = self.loop, self.loop.controller
-        s = 1j * omega
-        plant = _continuous_response(self.Phi, self.Gamma, self.c_vel, s)
-        actuation = np.full(s.shape, 1.0 / loop.drive.kt, dtype=complex)
-        for spec in ctrl.current_filters:
-            actuation = actuation * _tf_at(spec, s)
-        measure = plant / loop.velocity_gain
-        if self.differenced:
-            measure = measure * s
-        if ctrl.velocity_filter is not None:
-            measure = measure * _tf_at(ctrl.velocity_filter, s)
-        return np.full(s.shape, Kp, dtype=complex), Kp / (Ti * s), actuation, measure
+        return measure
 
     def analog_closed_loop(self, Kp: float, Ti: float, Kv: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Continuous state space of the closed analog velocity loop: inputs (velocity command,
@@ -203,21 +211,26 @@ class LoopAnalysis:
         return A, B, C
 
     # ------------------------------------------------------------------ position loop (rate Tp)
+    def position_model(self, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The closed velocity loop as an exact LTI system at Tp: inputs (velocity command,
+        feedforward effort) held over Tp, outputs (measured position, velocity) sampled at Tp —
+        the lifted sampled loop (``A^Np``, ``Σ A^i B``), or the ZOH of an analog one."""
+        if self.analog:
+            A, B, C = self.analog_closed_loop(Kp, Ti, self.loop.Kv)
+            Ap, Bp = zoh_matrices(A, B, self.loop.controller.position_period)
+            return Ap, Bp, C
+        A, B, C = self.velocity_closed_loop(Kp, Ti)
+        Bp = np.zeros_like(B)
+        power = np.eye(A.shape[0])
+        for _ in range(self.loop.position_ratio):
+            Bp += power @ B
+            power = power @ A
+        return np.linalg.matrix_power(A, self.loop.position_ratio), Bp, C
+
     def position_lifted(self, omega: np.ndarray, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray]:
         """Lifted transfers at ``z = e^{jωTp}`` from the velocity command and from the feedforward
         effort (both held over Tp) to the measured position (sampled at Tp)."""
-        if self.analog:        # the exact ZOH of the continuous closed velocity loop at Tp
-            A, B, C = self.analog_closed_loop(Kp, Ti, self.loop.Kv)
-            Ap, Bp = zoh_matrices(A, B, self.loop.controller.position_period)
-        else:
-            A, B, C = self.velocity_closed_loop(Kp, Ti)
-            Np = self.loop.position_ratio
-            Ap = np.linalg.matrix_power(A, Np)
-            Bp = np.zeros_like(B)
-            power = np.eye(A.shape[0])
-            for _ in range(Np):
-                Bp += power @ B
-                power = power @ A
+        Ap, Bp, C = self.position_model(Kp, Ti)
         z = np.exp(1j * omega * self.loop.controller.position_period)
         form = modal_form(Ap, Bp, C[:1], cluster=0.0)
         H = response_at(form, z)
@@ -296,21 +309,11 @@ class LoopAnalysis:
         G = _response(sub.A, sub.B, sub.C, 1j * omega) + sub.D[:, :, None]  # (3, 2, n)
         Tv, Tp = ctrl.velocity_period, ctrl.position_period
         cp, ci, act, _ = self.velocity_factors(omega, Kp, Ti)
-        if self.analog:        # continuous velocity law and measurement, no hold
-            s = 1j * omega
-            hold_v = np.ones_like(s)
-            meas_v = hold_v / loop.velocity_gain * (s if vel.kind == "position" else 1.0)
-            if ctrl.velocity_filter is not None:
-                meas_v = meas_v * _tf_at(ctrl.velocity_filter, s)
+        meas_v = self._measurement(omega)
+        if self.analog:        # continuous velocity law, no hold
+            hold_v = np.ones_like(meas_v)
         else:
-            _, velocity = self._blocks()
-            zv = np.exp(1j * omega * Tv)
             hold_v = (1 - np.exp(-1j * omega * Tv)) / (1j * omega * Tv)
-            meas_v = np.ones_like(zv) / loop.velocity_gain
-            if vel.kind == "position":
-                meas_v = meas_v * (1 - 1 / zv) / Tv
-            if velocity is not None:
-                meas_v = meas_v * _ss_response(velocity, zv)
         if ctrl.position_loop == "continuous":
             hold_p = np.ones_like(omega, dtype=complex)
         else:

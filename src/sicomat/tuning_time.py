@@ -110,24 +110,17 @@ def _step_with_marginal(A, B, C, period, n) -> StepResponse:
 def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: float | None = None) -> StepResponse:
     """Response of the measured position to a unit position step (position loop at Tp, lifted; a
     continuous position loop sampled at the velocity period)."""
-    loop = an.loop
-    ctrl = loop.controller
-    if an.analog:
+    ctrl = an.loop.controller
+    duration = duration or max(10.0 / max(Kv, 1e-3), 0.2)
+    if ctrl.position_loop == "continuous":     # v_cmd = Kv (x_ref - x): close it, then sample exactly
         A, B, C = an.analog_closed_loop(Kp, Ti, Kv)
-        if ctrl.position_loop == "continuous":     # v_cmd = Kv (x_ref - x): close it, then sample exactly
-            T = ctrl.velocity_period
-            Ad, Bd = zoh_matrices(A - Kv * np.outer(B[:, 0], C[0]), Kv * B[:, :1], T)
-            n = int(round((duration or max(10.0 / max(Kv, 1e-3), 0.2)) / T))
-            return _step_with_marginal(Ad, Bd[:, 0], C[0], T, n)
-        Ap, Bp = zoh_matrices(A, B[:, :1], ctrl.position_period)
-        Bp = Bp[:, 0]
-    else:
-        A, B, C = an.velocity_closed_loop(Kp, Ti)
-        Np = loop.position_ratio
-        Ap = np.linalg.matrix_power(A, Np)
-        Bp = sum(np.linalg.matrix_power(A, i) @ B[:, 0] for i in range(Np))
+        T = ctrl.velocity_period
+        Ad, Bd = zoh_matrices(A - Kv * np.outer(B[:, 0], C[0]), Kv * B[:, :1], T)
+        return _step_with_marginal(Ad, Bd[:, 0], C[0], T, int(round(duration / T)))
+    Ap, Bp, C = an.position_model(Kp, Ti)
+    Bp = Bp[:, 0]
     d = ctrl.position_delay
-    n_x = A.shape[0]
+    n_x = Ap.shape[0]
     # closed position loop with a delay line of d samples on the velocity command
     size = n_x + d
     Acl = np.zeros((size, size))
@@ -144,9 +137,8 @@ def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: f
         Bcl[:n_x] = Kv * Bp
     Ccl = np.zeros(size)
     Ccl[:n_x] = C[0]
-    Tp = loop.controller.position_period
-    n = int(round((duration or max(10.0 / max(Kv, 1e-3), 0.2)) / Tp))
-    return _step(Acl, Bcl, Ccl, Tp, n)
+    Tp = ctrl.position_period
+    return _step(Acl, Bcl, Ccl, Tp, int(round(duration / Tp)))
 
 
 @dataclass(frozen=True)
