@@ -235,7 +235,6 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     from .simulate import program as p
 
     mech, drv, ctrl = loop.mechanics, loop.drive, loop.controller
-    n = mech.n
     h = loop.base_period
     Np = loop.position_ratio
     s = _Slots()
@@ -246,18 +245,9 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     read = {f"sensor.{ctrl.position_sensor}", f"sensor.{ctrl.velocity_sensor or ctrl.position_sensor}",
             "actuator.velocity"}
     rows = [i for i, name in enumerate(plant.outputs) if name in read]
-    A, B, C = plant.A, plant.B[:, :1], plant.C[rows]
-    nx = plant.n_states
-    m_inv = 1.0 / np.diag(mech.mass)
-    output_slots = tuple(s(plant.outputs[i]) for i in rows)
-
     links = [f for f in mech.frictions if nonlinear and (f.coulomb > 0 or f.static > 0)]
-    F = np.zeros((nx, len(links)))
-    G = np.zeros((len(links), nx))
-    for j, link in enumerate(links):
-        F[n: 2 * n, j] = m_inv * link.g
-        G[j, n: 2 * n] = link.g
-    friction_slots = tuple(s(f"friction.{link.name}") for link in links)
+    for name in [plant.outputs[i] for i in rows] + [f"friction.{link.name}" for link in links]:
+        s(name)                 # their slots first, in this order (the matrices come in _assemble)
 
     ops: list = []
     blocks: list = []
@@ -325,7 +315,7 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     if analog:
         if ctrl.acceleration_feedforward:
             gain("feedforward.acceleration", "feedforward.effort", ctrl.acceleration_feedforward * loop.m_rigid, 1)
-        return _analog_program(loop, plant, setpoints, s, ops, read_rows=rows, links=links, nonlinear=nonlinear)
+        return _analog_program(loop, plant, setpoints, s, ops, read_rows=rows, links=links)
     if vel_sensor.kind == "velocity":
         gain(f"sensor.{vel_sensor.name}", "velocity.raw", 1.0 / loop.velocity_gain, 1)
     else:
@@ -390,50 +380,53 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     else:
         s.alias("current.applied", "current.limited")
 
-    table = setpoints.columns
-    continuous = p.ContinuousPart(
-        A=A, B=B, C=C, D=np.zeros((C.shape[0], 1)), F=F, G=G,
-        coulomb=np.array([link.coulomb for link in links]), static=np.array([link.static for link in links]),
-        x0=np.zeros(nx), input_slots=(s("current.applied"),), output_slots=output_slots,
-        friction_slots=friction_slots)
-    return p.HybridProgram(step=h, slot_names=tuple(s.names), continuous=continuous, blocks=tuple(blocks),
-                           ops=tuple(ops), table=table, record=tuple(range(len(s.names))),
-                           aliases=dict(s.aliases))
+    C = plant.C[rows]
+    return _assemble(loop, setpoints, s, ops, blocks, links, plant.A, plant.B[:, :1], C,
+                     np.zeros((C.shape[0], 1)), ["current.applied"], [plant.outputs[i] for i in rows])
 
 
 def _analog_program(loop: ServoLoop, plant: "Plant", setpoints: SetpointTable, s: _Slots, ops: list, *,
-                    read_rows: list[int], links: list, nonlinear: bool) -> "HybridProgram":
+                    read_rows: list[int], links: list) -> "HybridProgram":
     """The program of a loop whose velocity loop (and maybe position loop) is continuous: those
     loops join the continuous part (:mod:`sicomat.analog`), the setpoints and a discrete position
     loop stay ops. Drive limits act inside the analog loop and are not simulated (see docs/servo.md)."""
     from .analog import analog_loop
-    from .simulate import program as p
 
-    mech = loop.mechanics
-    n = mech.n
     closed = analog_loop(loop, plant)
     nx, nc = plant.n_states, closed.n_controller
     for name in closed.inputs:          # feedforward inputs not used by the loop read a zero slot
         s(name)
     rows = [np.concatenate([plant.C[i], np.zeros(nc + len(closed.inputs))]) for i in read_rows]
-    names = [plant.outputs[i] for i in read_rows] + list(closed.outputs)
     CD = np.array(rows + list(closed.outputs.values()))
     s.alias("current.reference", "current.command")
+    return _assemble(loop, setpoints, s, ops, [], links, closed.A, closed.B, CD[:, : nx + nc], CD[:, nx + nc:],
+                     list(closed.inputs), [plant.outputs[i] for i in read_rows] + list(closed.outputs))
+
+
+def _assemble(loop: ServoLoop, setpoints: SetpointTable, s: _Slots, ops: list, blocks: list, links: list,
+              A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, inputs: list[str],
+              outputs: list[str]) -> "HybridProgram":
+    """The hybrid program: the continuous part ``(A, B, C, D)`` (its first ``2n`` states the
+    mechanics' ``(q, q̇)``) with the friction links, the ops and blocks, the setpoint table."""
+    from .simulate import program as p
+
+    mech = loop.mechanics
+    n, nx = mech.n, A.shape[0]
     m_inv = 1.0 / np.diag(mech.mass)
-    F = np.zeros((nx + nc, len(links)))
-    G = np.zeros((len(links), nx + nc))
+    F = np.zeros((nx, len(links)))
+    G = np.zeros((len(links), nx))
     for j, link in enumerate(links):
         F[n: 2 * n, j] = m_inv * link.g
         G[j, n: 2 * n] = link.g
     continuous = p.ContinuousPart(
-        A=closed.A, B=closed.B, C=CD[:, : nx + nc], D=CD[:, nx + nc:], F=F, G=G,
+        A=A, B=B, C=C, D=D, F=F, G=G,
         coulomb=np.array([link.coulomb for link in links]), static=np.array([link.static for link in links]),
-        x0=np.zeros(nx + nc), input_slots=tuple(s(name) for name in closed.inputs),
-        output_slots=tuple(s(name) for name in names),
+        x0=np.zeros(nx), input_slots=tuple(s(name) for name in inputs),
+        output_slots=tuple(s(name) for name in outputs),
         friction_slots=tuple(s(f"friction.{link.name}") for link in links))
     return p.HybridProgram(step=loop.base_period, slot_names=tuple(s.names), continuous=continuous,
-                           ops=tuple(ops), table=setpoints.columns, record=tuple(range(len(s.names))),
-                           aliases=dict(s.aliases))
+                           blocks=tuple(blocks), ops=tuple(ops), table=setpoints.columns,
+                           record=tuple(range(len(s.names))), aliases=dict(s.aliases))
 
 
 def derived_signals(loop: ServoLoop, signals: dict[str, np.ndarray], fine_setpoint: np.ndarray,
