@@ -58,17 +58,9 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
         return Machine.model_validate(data)
     except ValidationError as exc:
         where = (_translate(exc, None).path or "").split(".")
-        closest = max(settings, key=lambda s: (_shared_prefix(s[1].split("."), where), settings.index(s)))
+        closest = max(settings, key=lambda s: (len(os.path.commonprefix([s[1].split("."), where])),
+                                               settings.index(s)))
         raise _translate(exc, f"--set {closest[0]}") from None
-
-
-def _shared_prefix(a: list[str], b: list[str]) -> int:
-    n = 0
-    for x, y in zip(a, b):
-        if x != y:
-            break
-        n += 1
-    return n
 
 
 def machine_from_dict(data: Mapping[str, Any], source: str | None = None) -> Machine:
