@@ -90,6 +90,12 @@ def _balance(Lp: np.ndarray, Lq: np.ndarray):
     return scipy.linalg.svd(Lq.T @ Lp, full_matrices=False, lapack_driver="gesdd")
 
 
+def _square_root(P: np.ndarray, Q: np.ndarray):
+    """``Lp, Lq, U, σ, Vᵀ``: the Gramians' factors and their balancing SVD (square-root method)."""
+    Lp, Lq = _factor(P), _factor(Q)
+    return (Lp, Lq, *_balance(Lp, Lq))
+
+
 def _minimal(hsv: np.ndarray) -> int:
     """Number of Hankel singular values above round-off."""
     if hsv.size == 0 or hsv[0] <= 0:
@@ -123,8 +129,7 @@ def hankel_singular_values(plant: Plant, *, rigid_tol: float = RIGID_TOL) -> np.
     [0.5]
     """
     _, gram = _stable_part(plant, rigid_tol)
-    P, Q = gram.gramians()
-    return _balance(_factor(P), _factor(Q))[1]
+    return _square_root(*gram.gramians())[3]
 
 
 def band_gramian_operator(T: np.ndarray, band_omega: tuple[float, float]) -> np.ndarray:
@@ -413,9 +418,7 @@ def balanced_truncation(plant: Plant, order: int, *, match_dc: bool = False,
     split, gram = _prepare(plant, order, rigid_tol)
     notes: list[str] = []
     stable = split.flexible
-    P, Q = gram.gramians()
-    Lp, Lq = _factor(P), _factor(Q)
-    U, hsv, Vt = _balance(Lp, Lq)
+    Lp, Lq, U, hsv, Vt = _square_root(*gram.gramians())
     r = _cap(order - split.rigid.n, _reliable(hsv) if match_dc else _minimal(hsv), notes, split)
     if match_dc:
         bal = _balanced_realization(stable, Lp, Lq, U, hsv, Vt)
@@ -448,9 +451,7 @@ def schur_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] |
     split, gram = _prepare(plant, order, rigid_tol)
     notes: list[str] = []
     stable = split.flexible
-    P, Q = gram.gramians()
-    Lp, Lq = _factor(P), _factor(Q)
-    U, hsv, Vt = _balance(Lp, Lq)
+    Lp, Lq, U, hsv, Vt = _square_root(*gram.gramians())
     r = _cap(order - split.rigid.n, _minimal(hsv), notes, split)
     Q1 = np.linalg.qr(Lp @ Vt[:r].T)[0]
     Q2 = np.linalg.qr(Lq @ U[:, :r])[0]
@@ -499,14 +500,11 @@ def frequency_limited_truncation(plant: Plant, order: int, band_hz: tuple[float,
     stable = split.flexible
     band_omega = (2 * np.pi * band_hz[0], 2 * np.pi * band_hz[1])
     variant = "frequency-limited"
-    P, Q = gram.gramians(band_omega)
-    Lp, Lq = _factor(P), _factor(Q)
-    U, hsv, Vt = _balance(Lp, Lq)
+    Lp, Lq, U, hsv, Vt = _square_root(*gram.gramians(band_omega))
     r = _cap(order - split.rigid.n, _minimal(hsv), notes, split)
     red = _truncate(stable, Lp, Lq, U, hsv, Vt, r)
     if red.n and np.any(np.linalg.eigvals(red.A).real >= 0):
-        Lp, Lq = (_factor(X) for X in gram.stabilised_band_gramians(band_omega))
-        U, hsv, Vt = _balance(Lp, Lq)
+        Lp, Lq, U, hsv, Vt = _square_root(*gram.stabilised_band_gramians(band_omega))
         r = min(r, _minimal(hsv))
         red = _truncate(stable, Lp, Lq, U, hsv, Vt, r)
         notes.append("the frequency-limited Gramians gave an unstable reduced model; the stabilised "
@@ -539,9 +537,7 @@ def hankel_norm_approximation(plant: Plant, order: int, *, band_hz: tuple[float,
     split, gram = _prepare(plant, order, rigid_tol)
     notes: list[str] = []
     stable = split.flexible
-    P, Q = gram.gramians()
-    Lp, Lq = _factor(P), _factor(Q)
-    U, hsv, Vt = _balance(Lp, Lq)
+    Lp, Lq, U, hsv, Vt = _square_root(*gram.gramians())
     n_min = _reliable(hsv)
     k = _cap(order - split.rigid.n, n_min, notes, split)
     bal = _balanced_realization(stable, Lp, Lq, U, hsv, Vt)
