@@ -264,11 +264,9 @@ class _Evaluator:
         self.an = LoopAnalysis.of(loop)
         self.omega_v = default_omega(loop, "velocity-open", n)
         self.omega_p = default_omega(loop, "position-open", n)
-        _, _, act, meas = self.an.velocity_factors(self.omega_v, 1.0, 1.0)
+        _, integrator, act, meas = self.an.velocity_factors(self.omega_v, 1.0, 1.0)
         self.plant_v = act * meas
-        T = loop.controller.velocity_period
-        self.integrator = (1.0 / (1j * self.omega_v) if self.an.analog          # Kp/Ti · integrator
-                           else T / (np.exp(1j * self.omega_v * T) - 1.0))
+        self.integrator = integrator    # the integral part for Kp = Ti = 1: T/(z − 1), or 1/(jω) analog
         self.count = 0
 
     def velocity_gain(self, kp: float, ti: float) -> np.ndarray:
