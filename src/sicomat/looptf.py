@@ -151,13 +151,13 @@ class LoopAnalysis:
             measure = measure * _ss_response(velocity, z)
         return measure
 
-    def analog_closed_loop(self, Kp: float, Ti: float, Kv: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def analog_closed_loop(self, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Continuous state space of the closed analog velocity loop: inputs (velocity command,
         feedforward effort), outputs (measured position in axis units, measured velocity)."""
         from .analog import analog_loop
         from .loop import servo_plant
 
-        loop = self.loop.with_gains(Kp=Kp, Ti=Ti, Kv=Kv)
+        loop = self.loop.with_gains(Kp=Kp, Ti=Ti)
         if loop.controller.position_loop == "continuous":     # the velocity loop alone, commanded
             loop = _with_controller(loop, position_loop="discrete")
         closed = analog_loop(loop, servo_plant(loop))
@@ -216,7 +216,7 @@ class LoopAnalysis:
         feedforward effort) held over Tp, outputs (measured position, velocity) sampled at Tp —
         the lifted sampled loop (``A^Np``, ``Σ A^i B``), or the ZOH of an analog one."""
         if self.analog:
-            A, B, C = self.analog_closed_loop(Kp, Ti, self.loop.Kv)
+            A, B, C = self.analog_closed_loop(Kp, Ti)
             Ap, Bp = zoh_matrices(A, B, self.loop.controller.position_period)
             return Ap, Bp, C
         A, B, C = self.velocity_closed_loop(Kp, Ti)
@@ -239,7 +239,7 @@ class LoopAnalysis:
     def position_continuous(self, omega: np.ndarray, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray]:
         """For a continuous position loop: the transfers at ``s = jω`` from the velocity command
         and from the feedforward effort to the measured position, through the analog velocity loop."""
-        A, B, C = self.analog_closed_loop(Kp, Ti, self.loop.Kv)
+        A, B, C = self.analog_closed_loop(Kp, Ti)
         H = _response(A, B, C[:1], 1j * np.asarray(omega, dtype=float))
         return H[0, 0], H[0, 1]
 

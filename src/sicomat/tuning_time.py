@@ -76,7 +76,7 @@ def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None
     sampled at the velocity period, exactly: a step is held)."""
     T = an.loop.controller.velocity_period
     if an.analog:
-        A, B, C = an.analog_closed_loop(Kp, Ti, an.loop.Kv)
+        A, B, C = an.analog_closed_loop(Kp, Ti)
         A, B = zoh_matrices(A, B, T)
     else:
         A, B, C = an.velocity_closed_loop(Kp, Ti)
@@ -113,7 +113,7 @@ def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: f
     ctrl = an.loop.controller
     duration = duration or max(10.0 / max(Kv, 1e-3), 0.2)
     if ctrl.position_loop == "continuous":     # v_cmd = Kv (x_ref - x): close it, then sample exactly
-        A, B, C = an.analog_closed_loop(Kp, Ti, Kv)
+        A, B, C = an.analog_closed_loop(Kp, Ti)
         T = ctrl.velocity_period
         Ad, Bd = zoh_matrices(A - Kv * np.outer(B[:, 0], C[0]), Kv * B[:, :1], T)
         return _step_with_marginal(Ad, Bd[:, 0], C[0], T, int(round(duration / T)))
