@@ -342,3 +342,37 @@ def test_reduce_write_keeps_what_it_can_and_says_what_not(model, tmp_path):
     assert got.axes["X"].mechanics.bodies["primary"].mass == pytest.approx(
         expected.axes["X"].mechanics.bodies["primary"].mass, rel=1e-13)
     assert got.axes["X"].drive == expected.axes["X"].drive and got.axes["X"].controller == expected.axes["X"].controller
+
+
+def test_tune_write_edits_inline_tables_and_arrays_in_place(tmp_path):
+    from sicomat.cli.analysis_cmd import write_tuned
+
+    model = tmp_path / "c.toml"
+    model.write_text('axes.X.mechanics = { type = "chain", masses = ["10 kg", "20 kg"], '
+                     'stiffnesses = ["1e6 N/m"] }  # inline\n'
+                     '[axes.X.drive]\nforce_constant = 100\ntime_constant = "0.5 ms"\n'
+                     '[axes.X.controller]\nposition_sensor = "last"\nKv = 30\nKp_normalized = 100\nTi = "10 ms"\n'
+                     'current_filters = [{ type = "low-pass", frequency = "3 kHz", damping = 0.7 }]\n')
+    machine = load_model(model, ["axes.X.mechanics.masses.1=25 kg"])
+    out = write_tuned(machine, "X", {"Kp": 1.0, "Kp_normalized": 90.0, "Ti": 0.009, "Kv": 25.0},
+                      {"frequency_hz": 50.0, "width": 0.5, "depth": 0.1}, tmp_path / "t.toml", based_on=model)
+    text = out.read_text()
+    assert "Written as plain SI numbers" not in text
+    assert 'masses = ["10 kg", "25 kg"], stiffnesses = ["1e6 N/m"] }  # inline' in text
+    assert 'current_filters = [{ type = "low-pass", frequency = "3 kHz", damping = 0.7 }, {' in text
+    assert 'Ti = "9 ms"  # was "10 ms"' in text
+    got = load_model(out).axes["X"]
+    assert got.mechanics.masses == [10.0, 25.0]
+    assert [(f.type, f.frequency) for f in got.controller.current_filters] == [("low-pass", 3000.0), ("notch", 50.0)]
+
+
+def test_an_edit_that_would_not_read_back_falls_back_to_plain_si_and_says_so(model, tmp_path, monkeypatch):
+    import sicomat.modelfile as modelfile
+
+    monkeypatch.setattr(modelfile, "_reads_as", lambda text, data: False)
+    machine = load_model(model)
+    out = save_model(machine, tmp_path / "copy.toml", based_on=model, header="a copy")
+    text = out.read_text()
+    assert text.startswith("# a copy\n# Written as plain SI numbers: the comments and units of")
+    monkeypatch.undo()
+    assert load_model(out) == machine

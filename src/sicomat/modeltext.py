@@ -69,7 +69,7 @@ def _merge(node: MutableMapping, old: Mapping, new: Mapping, keep_units: bool) -
         if _equal(before, value):
             continue
         if key not in node:
-            node[key] = _fresh(value)
+            node[key] = _fresh(value, inline=_inline(node))
             continue
         written = node[key]
         if isinstance(value, Mapping) and isinstance(before, Mapping) and isinstance(written, MutableMapping) \
@@ -84,22 +84,23 @@ def _merge(node: MutableMapping, old: Mapping, new: Mapping, keep_units: bool) -
                         and isinstance(written[i], MutableMapping) and value[i].get("type") == before[i].get("type"):
                     _merge(written[i], before[i], value[i], keep_units)
                 else:
-                    written[i] = _like(written[i], before[i], value[i], keep_units, comment=False)
+                    written[i] = _like(written[i], before[i], value[i], keep_units, comment=False,
+                                       inline=_inline(written))
             for item in value[len(before):]:
-                written.append(_fresh(item))
+                written.append(_fresh(item, inline=_inline(written)))
         else:
-            node[key] = _like(written, before, value, keep_units, comment=True)
+            node[key] = _like(written, before, value, keep_units, comment=True, inline=_inline(node))
     for key in old:
         if key not in new and key in node:
             del node[key]
 
 
-def _like(written: Any, before: Any, value: Any, keep_units: bool, comment: bool) -> Any:
+def _like(written: Any, before: Any, value: Any, keep_units: bool, comment: bool, inline: bool) -> Any:
     """``value`` as a TOML item in the style of ``written`` (the old item, which had ``before`` in SI)."""
     import tomlkit
 
     if not _is_number(value):  # a name, a type, a list or a table: replaced, its line's comment kept
-        item = _fresh(value)
+        item = _fresh(value, inline=inline)
         old_comment = _comment(written)
         if old_comment and hasattr(item, "comment"):
             item.comment(old_comment)
@@ -111,7 +112,7 @@ def _like(written: Any, before: Any, value: Any, keep_units: bool, comment: bool
         if match and float(match.group(1)) != 0:
             factor = before / float(match.group(1))  # SI per unit, as the loader applied it
             item = tomlkit.item(f"{value / factor:.15g} {match.group(2)}")
-    if comment and hasattr(written, "as_string"):
+    if comment and not inline and hasattr(written, "as_string"):  # no comment inside an inline table
         old_comment = _comment(written)
         item.comment(f"was {written.as_string()}" + (f": {old_comment}" if old_comment else ""))
         # the comment stays in its column when the old line had one, else two spaces after the value
@@ -120,15 +121,32 @@ def _like(written: Any, before: Any, value: Any, keep_units: bool, comment: bool
     return item
 
 
-def _fresh(value: Any) -> Any:
-    """A new TOML item for plain data; a new table ends with a blank line, like a hand-written one."""
+def _fresh(value: Any, inline: bool = False) -> Any:
+    """A new TOML item for plain data; a new table ends with a blank line, like a hand-written one.
+    Inside an inline table or an array (``inline``) a table is written inline."""
     import tomlkit
 
+    if inline and isinstance(value, Mapping):
+        table = tomlkit.inline_table()
+        table.update({key: _fresh(item, inline=True) for key, item in value.items()})
+        return table
+    if inline and isinstance(value, list):
+        array = tomlkit.array()
+        for item in value:
+            array.append(_fresh(item, inline=True))
+        return array
     item = tomlkit.item(value)
     tables = item if isinstance(item, tomlkit.items.AoT) else [item] if isinstance(item, tomlkit.items.Table) else []
     for table in tables:
         table.add(tomlkit.nl())
     return item
+
+
+def _inline(container: Any) -> bool:
+    """Whether a value put in ``container`` must be written inline (an inline table or an array)."""
+    import tomlkit
+
+    return isinstance(container, (tomlkit.items.InlineTable, tomlkit.items.Array))
 
 
 def _comment(item: Any) -> str:
