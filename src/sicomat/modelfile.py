@@ -12,7 +12,7 @@ from pydantic import ValidationError
 from .errors import ModelError
 from .model import Machine
 
-__all__ = ["load_model", "machine_from_dict", "save_model", "dump_model", "parse_override",
+__all__ = ["load_model", "machine_from_dict", "save_model", "model_text", "dump_model", "parse_override",
            "with_overrides"]
 
 _UNION_TAGS = {"mechanics": {"lumped", "chain", "belt-rack"}, "trajectory": {"step", "ramp", "trapezoid", "s-curve"}}
@@ -36,12 +36,7 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
         names the file (or the override), the key path, the value and what was expected.
     """
     source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ModelError("no such model file", source=source) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ModelError(f"cannot read the model file ({exc.__class__.__name__}: {exc})", source=source) from None
+    text = _read_text(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -147,12 +142,91 @@ def dump_model(machine: Machine) -> str:
     return tomli_w.dumps(dump_data(machine))
 
 
-def save_model(machine: Machine, path: str | os.PathLike) -> Path:
-    """Write the machine to ``path`` atomically (temporary file in the same folder, then rename)."""
-    from .atomic import atomic_write
+def save_model(machine: Machine, path: str | os.PathLike, *, based_on: str | os.PathLike | None = None,
+               header: str | None = None) -> Path:
+    """Write the machine to ``path`` atomically, under the output policy (``docs/outputs.md``).
 
-    text = dump_model(machine)
-    return atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+    Parameters
+    ----------
+    machine : Machine
+        The model to write.
+    path : path-like
+        A ``.toml`` file: a new name or a regular file (never ``based_on``).
+    based_on : path-like, optional
+        The model file ``machine`` was derived from: its text is kept (comments, layout, the unit
+        of every value) and only the values that differ are rewritten (:mod:`sicomat.modeltext`).
+        Without it, or if the edited text would not read back as ``machine``, the model is written
+        as plain SI numbers.
+    header : str, optional
+        Comment lines at the top of the file (e.g. what made it).
+
+    Raises
+    ------
+    OutputError
+        ``path`` is refused (:func:`sicomat.atomic.check_output`) or cannot be written.
+    ModelError
+        ``based_on`` cannot be read as a model file.
+
+    Loading what was saved gives an equal machine (numbers written in a unit: within 1e-13).
+    """
+    from .atomic import atomic_write, check_output
+
+    inputs = {"the model file it is based on": based_on}
+    check_output(path, "model", inputs=inputs)
+    text = model_text(machine, based_on=based_on, header=header)
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"), kind="model",
+                        inputs=inputs)
+
+
+def model_text(machine: Machine, *, based_on: str | os.PathLike | None = None, header: str | None = None) -> str:
+    """The TOML text :func:`save_model` writes."""
+    from .modeltext import comment_lines, edited_model_text
+
+    new = dump_data(machine)
+    if based_on is not None:
+        original = _read_text(based_on)
+        try:
+            old = dump_data(machine_from_dict(tomllib.loads(original), source=str(based_on)))
+        except tomllib.TOMLDecodeError as exc:
+            raise ModelError(f"not a valid TOML file: {exc}", source=str(based_on)) from None
+        for keep_units in (True, False):
+            text = edited_model_text(original, old, new, header=header, keep_units=keep_units)
+            if _reads_as(text, new):
+                return text
+        header = ((header + "\n") if header else "") + \
+            f"Written as plain SI numbers: the comments and units of {based_on} could not be kept."
+    return (comment_lines(header) if header else "") + dump_model(machine)
+
+
+def _reads_as(text: str, data: Mapping[str, Any]) -> bool:
+    """Whether ``text`` loads as ``data``: a number written in its line's unit reads back within
+    1e-13 relative (the loader keeps 15 significant digits of a string quantity, 5e-15, and the
+    unit factor carries a few roundings of 1.1e-16 each)."""
+    try:
+        loaded = dump_data(machine_from_dict(tomllib.loads(text)))
+    except (ModelError, tomllib.TOMLDecodeError):
+        return False
+    return _close(loaded, data)
+
+
+def _close(a: Any, b: Any) -> bool:
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_close(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) and isinstance(b, (int, float)) and not isinstance(b, bool):
+        return abs(a - b) <= 1e-13 * max(abs(a), abs(b))
+    return type(a) is type(b) and a == b
+
+
+def _read_text(path: str | os.PathLike) -> str:
+    source = str(path)
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ModelError("no such model file", source=source) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"cannot read the model file ({exc.__class__.__name__}: {exc})", source=source) from None
 
 
 # --------------------------------------------------------------------------- errors

@@ -118,12 +118,11 @@ def plot_step(response, title: str = "step response") -> "Figure":
 
 
 def save_figure(fig: "Figure", path: str | os.PathLike) -> Path:
-    """Save ``fig`` to ``path`` atomically (format from the suffix: .png, .svg, .pdf)."""
-    from .atomic import atomic_write
-    from .errors import OutputError
+    """Save ``fig`` to ``path`` atomically, under the output policy (``docs/outputs.md``); the
+    format is the name's extension: .png, .svg or .pdf."""
+    from .atomic import atomic_write, check_output
 
-    path = Path(path)
-    suffix = path.suffix.lower().lstrip(".") or "png"
-    if suffix not in ("png", "svg", "pdf"):
-        raise OutputError(f"{path}: unsupported figure format {suffix!r}; expected .png, .svg or .pdf")
-    return atomic_write(path, lambda tmp: fig.savefig(tmp, format=suffix, dpi=120), suffix=f".{suffix}")
+    target = check_output(path, "figure")
+    suffix = target.suffix.lower()
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, format=suffix[1:], dpi=120), suffix=suffix,
+                        kind="figure")

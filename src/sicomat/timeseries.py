@@ -117,7 +117,8 @@ class TimeSeries:
 
 
 def write_frame_csv(frame: "pandas.DataFrame", path: str | os.PathLike) -> Path:
-    """Write a DataFrame as CSV atomically (temporary file in the same folder, then rename)."""
+    """Write a DataFrame as CSV atomically, under the output policy (``docs/outputs.md``: a ``.csv``
+    name, a new or regular file)."""
     from .atomic import atomic_write
 
-    return atomic_write(path, lambda tmp: frame.to_csv(tmp, float_format="%.10g"))
+    return atomic_write(path, lambda tmp: frame.to_csv(tmp, float_format="%.10g"), kind="csv")

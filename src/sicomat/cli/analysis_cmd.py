@@ -21,8 +21,14 @@ def margins_payload(velocity, position) -> dict[str, Any]:
     return {"velocity": velocity.to_dict(), "position": position.to_dict()}
 
 
-def write_tuned(machine, axis: str, gains: dict[str, float], notch: dict[str, float] | None, path: Path) -> Path:
-    """Save a copy of the model with the tuned gains (in the units the file used) and the notch."""
+def write_tuned(machine, axis: str, gains: dict[str, float], notch: dict[str, float] | None, path: Path,
+                based_on: Path | None = None, method: str = "frequency") -> Path:
+    """Save a copy of the model with the tuned gains and the notch.
+
+    With ``based_on`` (the model file that was tuned) the copy is that file's text with only the
+    tuned keys changed: comments and units kept, a tuned value in the unit its line used and
+    marked ``# was <old value>`` (``docs/outputs.md``).
+    """
     from ..modelfile import save_model
     from ..servo_spec import FilterSpec
 
@@ -42,4 +48,9 @@ def write_tuned(machine, axis: str, gains: dict[str, float], notch: dict[str, fl
     from ..modelfile import dump_data, machine_from_dict
 
     machine_from_dict(dump_data(tuned), source=str(path))  # validate what is written
-    return save_model(tuned, path)
+    header = None
+    if based_on is not None:
+        header = (f"Tuned by `sicomat tune --method {method}` from {based_on}, axis {axis}"
+                  + (", with a notch filter added" if notch is not None else "")
+                  + ".\nThe changed values are marked '# was'; everything else is the original's text.")
+    return save_model(tuned, path, based_on=based_on, header=header)

@@ -39,8 +39,10 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
     """Natural frequencies, damping ratios and mode shapes of an axis's mechanics."""
     with guarded(model):
         from ..mechanics import build_mechanics
+        from ..atomic import check_outputs
         from ..modal import modal_analysis
 
+        check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         name = machine.axis_name(axis)
         result = modal_analysis(build_mechanics(machine.axes[name].mechanics))
@@ -81,8 +83,11 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
     with guarded(model):
         from ..loop import build_servo_loop
         from ..simulate import simulate as run_simulation
+        from ..atomic import check_outputs
         from .simulate_cmd import choose_profile, simulate_payload
 
+        check_outputs({"--out": (out, "csv"), "--plot": (plot, "figure")},
+                      {"the model file": model, "the G-code file (--gcode)": gcode})
         machine = load(model, set_)
         if gcode is not None:
             from .simulate_cmd import simulate_gcode
@@ -139,8 +144,10 @@ def bode(model: Path = ModelArgument,
     with guarded(model):
         from ..loop import build_servo_loop
         from ..looptf import LoopAnalysis, default_omega
+        from ..atomic import check_outputs
         from .analysis_cmd import bode_payload
 
+        check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         servo = build_servo_loop(machine, axis)
         an = LoopAnalysis.of(servo)
@@ -213,6 +220,9 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             raise ModelError("expected 'frequency' or 'time'", source="--method", value=method)
         if position_phase_margin is not None and position_crossover is not None:
             raise ModelError("give either --position-phase-margin or --position-crossover", source="options")
+        from ..atomic import check_outputs
+
+        check_outputs({"--write": (write, "model")}, {"the model file": model})
         machine = load(model, set_)
         servo = build_servo_loop(machine, axis)
         if method == "time":
@@ -241,7 +251,7 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             gains = {"Kp": t.Kp, "Kp_normalized": t.Kp_normalized, "Ti": t.Ti, "Kv": t.Kv}
             notch = result.notch if chosen is not result else None
         if write is not None:
-            write_tuned(machine, servo.axis, gains, notch, write)
+            write_tuned(machine, servo.axis, gains, notch, write, based_on=model, method=method)
             payload["written"] = str(write)
         if json_:
             emit_json({"axis": servo.axis, **payload})
@@ -274,6 +284,9 @@ def circle(model: Path = ModelArgument,
             raise ModelError("the radius must be > 0 mm", source="--radius", value=radius)
         if not feed > 0:
             raise ModelError("the feed must be > 0 mm/min", source="--feed", value=feed)
+        from ..atomic import check_outputs
+
+        check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         test = circle_test(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw, feedforward=feedforward)
         if plot is not None:
@@ -309,15 +322,18 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
         if method not in METHODS:
             raise ModelError(f"expected one of {', '.join(METHODS)}", source="--method", value=method)
+        if write is not None and method != "physical":
+            raise ModelError("only the physical method gives a model file; the others give a state space",
+                             source="--write", value=str(write))
+        from ..atomic import check_outputs
+
+        check_outputs({"--write": (write, "model"), "--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         result = reduce_command(machine, axis, method, order, keep, band)
         if write is not None:
-            if getattr(result, "machine", None) is None:
-                raise ModelError("only the physical method gives a model file; the others give a state space",
-                                 source="--write", value=str(write))
-            from ..modelfile import save_model
+            from ..reduction.cli_support import write_reduced
 
-            save_model(result.machine, write)
+            write_reduced(result, write, based_on=model, axis=machine.axis_name(axis))
         if plot is not None:
             from ..plotting import save_figure
 
@@ -354,6 +370,9 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         for name, value in (("--Kp", kp), ("--Ti", ti), ("--Kv", kv), ("--duration", duration)):
             if value is not None and not value > 0:
                 raise ModelError("expected a value > 0", source=name, value=value)
+        from ..atomic import check_outputs
+
+        check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         servo = build_servo_loop(load(model, set_), axis)
         an = LoopAnalysis.of(servo)
         Kp = servo.Kp if kp is None else kp * servo.m_rigid

@@ -10,10 +10,12 @@ import numpy as np
 from ..errors import ModelError
 
 if TYPE_CHECKING:  # pragma: no cover
+    import os
+
     from ..model import Axis, Machine
     from .error import ReductionResult
 
-__all__ = ["reduce_command", "parse_band", "parse_keep", "METHODS"]
+__all__ = ["reduce_command", "write_reduced", "parse_band", "parse_keep", "METHODS"]
 
 METHODS = ("modal", "balanced", "balanced-dc", "schur", "hankel", "physical")
 """Accepted ``--method`` values. ``balanced`` uses the frequency-limited ("partial") Gramians when a
@@ -165,3 +167,25 @@ def reduce_command(machine: "Machine", axis: str | None, method: str, order: int
                 option = "--order" if order is not None else ("--band" if band_hz is not None else "--keep")
             raise _as_option(exc, option) from None
         raise
+
+
+def write_reduced(result: "ReductionResult", path: "str | os.PathLike", based_on: "str | os.PathLike | None" = None,
+                  axis: str | None = None):
+    """Write the machine of a physical reduction (``sicomat reduce --write``).
+
+    With ``based_on`` (the reduced model file) the file is that file's text edited: the reduced
+    axis's surviving bodies, couplings and frictions keep their lines (a changed value keeps its
+    unit, marked ``# was``), merged-away ones are removed with their lines, new entries are plain SI
+    numbers; a header names the source and the method and says what is not kept.
+    """
+    from ..modelfile import save_model
+
+    header = None
+    if based_on is not None:
+        onto = ", ".join(result.spec.bodies) if result.spec is not None else "fewer bodies"
+        header = (f"Reduced by `sicomat reduce --method physical` from {based_on}"
+                  + (f", axis {axis}" if axis else "") + f": bodies regrouped onto {onto}.\n"
+                  "Kept: the rest of the file as written. Changed values are marked '# was'; merged-away\n"
+                  "bodies, couplings and frictions are removed with their lines; new entries are plain SI\n"
+                  "numbers. Not kept: comments are the original's and may describe the unreduced model.")
+    return save_model(result.machine, path, based_on=based_on, header=header)
