@@ -12,6 +12,7 @@ import scipy.optimize
 
 import sicomat
 from sicomat.loop import build_servo_loop, servo_plant
+from sicomat.looptf import LoopAnalysis
 from sicomat.setpoints import step_profile, trapezoid_profile
 from sicomat.simulate import simulate
 from sicomat.simulate.checks import (FINAL_ERROR_BAND, final_error_warning, limit_cycle_warning,
@@ -98,14 +99,12 @@ def test_rigid_body_pole_of_the_velocity_loop_is_marginal_not_unstable():
     """The velocity loop alone leaves the position free: a pole at z = 1 exactly (2e-16 off in double
     precision), which must not count as unstable."""
     loop = _loop("paper_5m4s.toml")
-    poles = loop_poles(__import__("sicomat.looptf", fromlist=["LoopAnalysis"]).LoopAnalysis.of(loop),
-                       loops=("velocity",))["velocity"]
+    poles = loop_poles(LoopAnalysis.of(loop), loops=("velocity",))["velocity"]
     assert np.min(np.abs(poles.poles - 1.0)) < 1e-9
     assert poles.stable
 
 
 def test_margins_warnings_reconcile_with_the_poles():
-    from sicomat.looptf import LoopAnalysis
     from sicomat.margins import stability_margins
 
     loop = _loop("paper_5m4s.toml", "axes.X.controller.velocity_delay=0", "axes.X.controller.velocity_loop=continuous")
