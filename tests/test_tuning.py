@@ -57,7 +57,11 @@ def table_one(paper_loop):
 
 def test_table_one_targets_met(table_one):
     a = table_one.achieved
-    assert table_one.targets_met
+    # every target at the main crossovers is met; the resonant crossings of the velocity loop keep only
+    # 30.3° (at the 374 Hz mode, docs/table-1.md), below the 45° asked: not all targets are met
+    assert not table_one.targets_met
+    assert len(table_one.unmet) == 1 and "velocity worst phase margin" in table_one.unmet[0]
+    assert a.velocity_worst_phase_margin_deg < 45.0 - 1.0
     assert a.velocity_phase_margin_deg == pytest.approx(45.0, abs=1.0)
     assert a.velocity_crossover_rad_s == pytest.approx(125.6, rel=0.03)
     assert a.position_phase_margin_deg == pytest.approx(80.0, abs=1.0)

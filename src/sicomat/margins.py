@@ -127,6 +127,8 @@ class Margins:
 
         A hint, not a proof: it assumes an open loop without unstable poles and says nothing about
         crossovers outside the grid; a conditionally stable loop may have a negative gain margin.
+        **Deprecated** as a verdict (kept in :meth:`to_dict` for old readers): the stability of a
+        servo loop is :func:`sicomat.stability.loop_verdict`, from the closed loop's poles.
         """
         return bool(self.gain_margin_db > 0 and self.phase_margin_deg > 0 and self.modulus_margin > 0)
 

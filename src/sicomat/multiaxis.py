@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import ModelError
+from .stability import Verdict, combine
 
 if TYPE_CHECKING:  # pragma: no cover
     from .circle import CircleResult
@@ -22,7 +23,12 @@ if TYPE_CHECKING:  # pragma: no cover
     from .path import Path, PathSamples
     from .timeseries import TimeSeries
 
-__all__ = ["PathRun", "CircleTest", "axis_for", "with_feedforward", "simulate_path", "circle_test"]
+__all__ = ["PathRun", "CircleTest", "axis_for", "with_feedforward", "simulate_path", "circle_test", "axes_verdict",
+           "PATH_METRICS"]
+
+PATH_METRICS = ("max_following_error", "rms_following_error", "final_error")
+"""The per-axis figures of a path run: the following error only. Step-response figures (overshoot,
+rise and settling time) have no meaning on a path (a closed one returns to its start: no step)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,6 +49,14 @@ class PathRun:
     actual: np.ndarray
     contour_error: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
+    verdicts: dict[str, Verdict] = field(default_factory=dict)
+
+    @property
+    def verdict(self) -> Verdict:
+        """One verdict of all the axes (each warning prefixed with its machine axis)."""
+        names = list(self.verdicts)
+        return combine([self.verdicts[n] for n in names],
+                       [f"axis {self.info['machine_axes'][n]}: " for n in names])
 
     @property
     def max_contour_error(self) -> float:
@@ -55,8 +69,11 @@ class PathRun:
                 "rms_contour_error": float(np.sqrt(np.mean(self.contour_error ** 2))),
                 "path_length": float(self.path.length), "duration_s": float(self.time[-1] + self.info["step"]),
                 "samples": int(self.time.size), "wall_time_s": self.info.get("wall_time_s"),
-                "axes": {name: {"machine_axis": self.info["machine_axes"][name], **series.metrics.to_dict()}
-                         for name, series in self.axes.items()}}
+                "axes": {name: {"machine_axis": self.info["machine_axes"][name],
+                                **{key: getattr(series.metrics, key) for key in PATH_METRICS},
+                                **(self.verdicts[name].to_dict() if name in self.verdicts else {})}
+                         for name, series in self.axes.items()},
+                **self.verdict.to_dict()}
 
     def to_pandas(self):
         """Time-indexed frame: commanded and actual tool positions per axis, s, contour error."""
@@ -77,23 +94,49 @@ class PathRun:
 
 @dataclass(frozen=True, eq=False)
 class CircleTest:
-    """An ISO 230-4 circle test run: the simulated :class:`PathRun` and its :class:`CircleResult`."""
+    """An ISO 230-4 circle test run: the simulated :class:`PathRun`, its :class:`CircleResult` and the
+    verdict of the axes. An unstable axis (poles, divergence or limit cycle) leaves no figures:
+    ``circle`` is None (and ``run`` too when the test was not simulated)."""
 
-    run: PathRun
-    circle: "CircleResult"
+    run: PathRun | None
+    circle: "CircleResult | None"
     feedforward: str
+    verdict: Verdict = field(default_factory=lambda: Verdict(True))
+    radius: float = 0.0
+    feed: float = 0.0
+    clockwise: bool = False
+    machine_axes: dict[str, str] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``sicomat circle --json`` object."""
+        if self.circle is None or self.run is None:
+            return {"circular_deviation": None, "radius": self.radius, "clockwise": self.clockwise,
+                    "feed": self.feed, "feedforward": self.feedforward,
+                    "axes": {name: {"machine_axis": axis} for name, axis in self.machine_axes.items()},
+                    **self.verdict.to_dict()}
         out = self.circle.to_dict()
         out.update({"max_contour_error": self.run.max_contour_error, "feedforward": self.feedforward,
                     "wall_time_s": self.run.info.get("wall_time_s"),
-                    "axes": self.run.to_dict()["axes"]})
+                    "axes": self.run.to_dict()["axes"], **self.verdict.to_dict()})
         return out
 
     def plot(self, magnification: float | None = None):
         """The ballbar-style polar plot of the radial deviation."""
+        if self.circle is None:
+            from .errors import AnalysisError
+
+            raise AnalysisError("no circle figure: " + "; ".join(self.verdict.warnings))
         return self.circle.plot(magnification)
+
+
+def axes_verdict(machine: "Machine", names) -> Verdict:
+    """The verdict of the machine axes driving the path axes ``names``, from their closed loops' poles
+    (each warning prefixed with its machine axis)."""
+    from .loop import build_servo_loop
+    from .stability import loop_verdict
+
+    axes = [axis_for(machine, name) for name in names]
+    return combine([loop_verdict(build_servo_loop(machine, axis)) for axis in axes], [f"axis {a}: " for a in axes])
 
 
 def axis_for(machine: "Machine", name: str) -> str:
@@ -129,22 +172,34 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
     ------
     ModelError
         A path axis has no machine axis, or an axis has no servo loop.
+    SimulationDiverged
+        An axis diverged; the message names it and its attribute ``axis`` too.
     """
     from .contour import contour_error
     from .loop import build_servo_loop
     from .simulate import simulate
+    from .simulate.checks import simulation_verdict
+    from .simulate.kernel import SimulationDiverged
 
     path = samples.path
     names = path.axis_names
     mapping = {name: axis_for(machine, name) for name in names}
     duration = samples.profile.end_time + settle
     runs: dict[str, TimeSeries] = {}
+    verdicts: dict[str, Verdict] = {}
     wall = 0.0
     for k, name in enumerate(names):
         loop = build_servo_loop(machine, mapping[name])
-        series = simulate(loop, samples.axis_setpoint(k), duration, nonlinear=nonlinear)
+        setpoint = samples.axis_setpoint(k)
+        try:
+            series = simulate(loop, setpoint, duration, nonlinear=nonlinear)
+        except SimulationDiverged as exc:
+            error = SimulationDiverged(f"axis {mapping[name]}: {exc}", time=exc.time, step=exc.step)
+            error.axis = mapping[name]
+            raise error from None
         wall += series.info["wall_time_s"]
         runs[name] = series
+        verdicts[name] = simulation_verdict(loop, series, setpoint)
     first = runs[names[0]]
     t = first.time
     setpoint = np.empty((t.size, len(names)))
@@ -160,7 +215,7 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
     return PathRun(path=path, samples=samples, axes=runs, time=t, s=s, setpoint=setpoint, actual=actual,
                    contour_error=error,
                    info={"wall_time_s": wall + (_time.perf_counter() - start), "step": first.info["step"],
-                         "machine_axes": mapping})
+                         "machine_axes": mapping}, verdicts=verdicts)
 
 
 def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bool = False,
@@ -208,7 +263,23 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
     first = machine.axes[axis_for(machine, axes[0])]
     period = first.controller.position_period if first.controller is not None else 1e-3
     samples = interpolate(path, feed, acc, jerk, period)
-    run = simulate_path(machine, samples, nonlinear=nonlinear)
+    mapping = {name: axis_for(machine, name) for name in path.axis_names}
+    about = {"feedforward": feedforward or "model", "radius": float(radius), "feed": float(feed),
+             "clockwise": bool(clockwise), "machine_axes": mapping}
+    verdict = axes_verdict(machine, path.axis_names)
+    if verdict.stable is False:       # the figures of an unstable axis mean nothing: do not simulate
+        return CircleTest(run=None, circle=None, verdict=verdict.with_warnings(
+            ["no circle figures: an axis is unstable"]), **about)
+    from .simulate.kernel import SimulationDiverged
+
+    try:
+        run = simulate_path(machine, samples, nonlinear=nonlinear)
+    except SimulationDiverged as exc:
+        return CircleTest(run=None, circle=None, verdict=verdict.with_warnings(
+            [f"{exc}", "no circle figures: an axis diverged"], unstable=True), **about)
+    if run.verdict.stable is False:
+        return CircleTest(run=run, circle=None, verdict=run.verdict.with_warnings(
+            ["no circle figures: an axis is unstable"]), **about)
     circle = evaluate_circle(run.actual[:, 0], run.actual[:, 1], test.center[:2], radius, s=run.s,
                              window=test.window, clockwise=clockwise, feed=feed)
-    return CircleTest(run=run, circle=circle, feedforward=feedforward or "model")
+    return CircleTest(run=run, circle=circle, verdict=run.verdict, **about)

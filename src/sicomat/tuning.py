@@ -77,6 +77,7 @@ class Achieved:
     velocity_crossovers: int = 1
     velocity_bandwidth_rad_s: float | None = None
     position_bandwidth_rad_s: float | None = None
+    position_worst_phase_margin_deg: float = float("nan")
 
     @property
     def gain_margin_db(self) -> float:
@@ -101,6 +102,13 @@ class TuningResult:
     evaluations: int = 0
     wall_time_s: float = 0.0
     history: tuple[dict[str, float], ...] = field(default_factory=tuple, repr=False)
+    stable: bool | None = None
+    stability_warnings: tuple[str, ...] = ()
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """Plain sentences: each unmet target, then what the poles of the tuned loop say."""
+        return tuple(f"not met: {u}" for u in self.unmet if u not in self.stability_warnings) + self.stability_warnings
 
     def to_dict(self) -> dict[str, Any]:
         """The ``sicomat tune --json`` contract."""
@@ -118,6 +126,7 @@ class TuningResult:
                             "velocity_worst_phase_margin_deg": _finite(a.velocity_worst_phase_margin_deg),
                             "velocity_crossovers": a.velocity_crossovers,
                             "position_phase_margin_deg": a.position_phase_margin_deg,
+                            "position_worst_phase_margin_deg": _finite(a.position_worst_phase_margin_deg),
                             "position_crossover_rad_s": a.position_crossover_rad_s,
                             "position_gain_margin_db": _finite(a.position_gain_margin_db),
                             "gain_margin_db": _finite(a.gain_margin_db),
@@ -125,7 +134,8 @@ class TuningResult:
                             "position_bandwidth_rad_s": a.position_bandwidth_rad_s,
                             "targets_met": self.targets_met, "unmet": list(self.unmet),
                             "notch": self.notch},
-               "evaluations": self.evaluations, "wall_time_s": self.wall_time_s}
+               "evaluations": self.evaluations, "wall_time_s": self.wall_time_s,
+               "stable": self.stable, "warnings": list(self.warnings)}
         if self.with_notch is not None:
             out["with_notch"] = {k: v for k, v in self.with_notch.to_dict().items() if k != "with_notch"}
         return out
@@ -374,11 +384,16 @@ def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: flo
                         qp.gain_margin, velocity_worst_phase_margin_deg=qv.worst_phase_margin,
                         velocity_crossovers=qv.n_crossovers,
                         velocity_bandwidth_rad_s=_bandwidth(ev.omega_v, ev.velocity_gain(kp, ti)),
-                        position_bandwidth_rad_s=_bandwidth(ev.omega_p, kv * base))
-    unmet = _unmet(targets, achieved)
+                        position_bandwidth_rad_s=_bandwidth(ev.omega_p, kv * base),
+                        position_worst_phase_margin_deg=qp.worst_phase_margin)
+    from .stability import loop_verdict
+
+    verdict = loop_verdict(loop, Kp=kp, Ti=ti, Kv=kv, an=ev.an)
+    unmet = _unmet(targets, achieved) + list(verdict.warnings)
     return TuningResult(loop=loop, targets=targets, initial=initial, tuned=Gains(kp, kp / loop.m_rigid, ti, kv),
                         equivalent_delay_s=tau, achieved=achieved, targets_met=not unmet, unmet=tuple(unmet),
-                        evaluations=ev.count, wall_time_s=time.perf_counter() - start)
+                        evaluations=ev.count, wall_time_s=time.perf_counter() - start,
+                        stable=verdict.stable, stability_warnings=verdict.warnings)
 
 
 def _bandwidth(omega: np.ndarray, L: np.ndarray) -> float | None:
@@ -423,6 +438,11 @@ def _unmet(t: TuningTargets, a: Achieved) -> list[str]:
             unmet.append(f"position crossover {a.position_crossover_rad_s:.1f} rad/s instead of {t.position_crossover:.1f}")
     elif abs(a.position_phase_margin_deg - t.position_phase_margin) > t.tolerance_deg:
         unmet.append(f"position phase margin {a.position_phase_margin_deg:.1f}° instead of {t.position_phase_margin:g}°")
+    # every crossover, not only the main one, must keep the margin asked for (resonances crossing 0 dB)
+    for name, worst, asked in (("velocity", a.velocity_worst_phase_margin_deg, t.velocity_phase_margin),
+                               ("position", a.position_worst_phase_margin_deg, t.position_phase_margin)):
+        if asked is not None and not worst >= asked - t.tolerance_deg:
+            unmet.append(f"{name} worst phase margin {worst:.1f}° (over all gain crossovers) below {asked:g}°")
     if a.gain_margin_db < t.min_gain_margin - 0.05:
         unmet.append(f"gain margin {a.gain_margin_db:.1f} dB below {t.min_gain_margin:g} dB")
     return unmet

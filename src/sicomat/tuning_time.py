@@ -28,13 +28,20 @@ __all__ = ["TimeTargets", "StepResponse", "TimeTuningResult", "velocity_step", "
 
 @dataclass(frozen=True)
 class TimeTargets:
-    """Targets of the time approach (overshoots in percent)."""
+    """Targets of the time approach (overshoots in percent) and the margins the result must keep.
+
+    The tuned loop meets its targets only if, besides the overshoots, both loops keep a gain margin
+    of ``min_gain_margin`` dB and a worst phase margin (over all gain crossovers, as ``sicomat
+    margins`` reports it) of ``min_phase_margin`` degrees: the classic floors of 6 dB and 30°.
+    """
 
     initial_Ti: float = 0.5
     velocity_overshoot_p: float = 10.0
     velocity_overshoot_pi: tuple[float, float] = (20.0, 40.0)
     position_overshoot: float = 1.0
     tolerance: float = 0.5
+    min_gain_margin: float = 6.0
+    min_phase_margin: float = 30.0
 
 
 @dataclass(frozen=True)
@@ -48,27 +55,38 @@ class StepResponse:
     stable: bool
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready figures (without the samples)."""
-        return {"overshoot_percent": self.overshoot_percent, "rise_time": self.rise_time, "stable": self.stable}
+        """JSON-ready figures (without the samples); an unstable loop has no overshoot (None)."""
+        return {"overshoot_percent": self.overshoot_percent if self.stable else None,
+                "rise_time": self.rise_time, "stable": self.stable}
 
 
-def _step(A: np.ndarray, B: np.ndarray, C: np.ndarray, period: float, n: int) -> StepResponse:
+def _step(A: np.ndarray, B: np.ndarray, C: np.ndarray, period: float, n: int, velocity_period: float,
+          tail: int = 1) -> StepResponse:
+    """Unit step response of ``x+ = A x + B``, ``y = C x``, judged by the poles of A (see
+    :mod:`sicomat.stability`; poles at z = 1, the free position a velocity loop does not hold, are
+    marginal). The final value is the mean of the last ``tail`` samples. An unstable loop has no
+    overshoot or rise time (``inf`` and None) and its samples stop, as NaN, where they overflow."""
+    from .stability import LoopPoles
+
+    stable = LoopPoles("step", np.linalg.eigvals(A), period, velocity_period).stable
     x = np.zeros(A.shape[0])
-    y = np.empty(n)
-    for k in range(n):
-        y[k] = C @ x
-        x = A @ x + B
-    stable = bool(np.max(np.abs(np.linalg.eigvals(A))) < 1.0 - 1e-12)
+    y = np.full(n, np.nan)
+    with np.errstate(all="ignore"):
+        for k in range(n):
+            y[k] = C @ x
+            if not np.isfinite(y[k]) or abs(y[k]) > 1e12:
+                y[k] = np.nan
+                break
+            x = A @ x + B
     t = np.arange(n) * period
-    final = y[-1] if stable else 1.0
-    overshoot = float(max(0.0, (np.max(y) - final) / abs(final) * 100.0)) if final != 0 and np.isfinite(final) else np.inf
-    rise = None
-    if np.isfinite(final) and final != 0:
-        norm = y / final
-        above10, above90 = np.flatnonzero(norm >= 0.1), np.flatnonzero(norm >= 0.9)
-        if above10.size and above90.size:
-            rise = float(t[above90[0]] - t[above10[0]])
-    return StepResponse(t, y, overshoot if stable else np.inf, rise, stable)
+    final = float(np.mean(y[-max(1, tail):])) if stable else np.nan
+    if not stable or not np.isfinite(final) or abs(final) < 1e-12:
+        return StepResponse(t, y, np.inf, None, False)
+    norm = y / final
+    overshoot = float(max(0.0, (np.max(norm) - 1.0) * 100.0))
+    above10, above90 = np.flatnonzero(norm >= 0.1), np.flatnonzero(norm >= 0.9)
+    rise = float(t[above90[0]] - t[above10[0]]) if above10.size and above90.size else None
+    return StepResponse(t, y, overshoot, rise, True)
 
 
 def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None = None) -> StepResponse:
@@ -82,63 +100,22 @@ def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None
         A, B, C = an.velocity_closed_loop(Kp, Ti)
     # the position integrator does not act on the velocity: keep the output row of v_meas
     n = int(round((duration or max(30 * Ti if Ti < 0.05 else 0.5, 0.1)) / T))
-    return _step_with_marginal(A, B[:, 0], C[1], T, n)
-
-
-def _step_with_marginal(A, B, C, period, n) -> StepResponse:
-    """Step response where eigenvalues at exactly 1 (the free position of the axis) are unobservable."""
-    x = np.zeros(A.shape[0])
-    y = np.empty(n)
-    for k in range(n):
-        y[k] = C @ x
-        x = A @ x + B
-    mags = np.abs(np.linalg.eigvals(A))
-    stable = bool(np.all((mags < 1.0 - 1e-12) | (np.abs(mags - 1.0) < 1e-9)))  # the position integrator
-    if not np.all(np.isfinite(y)) or np.max(np.abs(y)) > 1e6:
-        stable = False
-    t = np.arange(n) * period
-    final = float(np.mean(y[-max(3, n // 50):]))
-    if not stable or abs(final) < 1e-12:
-        return StepResponse(t, y, np.inf, None, False)
-    norm = y / final
-    overshoot = float(max(0.0, (np.max(norm) - 1.0) * 100.0))
-    above10, above90 = np.flatnonzero(norm >= 0.1), np.flatnonzero(norm >= 0.9)
-    rise = float(t[above90[0]] - t[above10[0]]) if above10.size and above90.size else None
-    return StepResponse(t, y, overshoot, rise, True)
+    return _step(A, B[:, 0], C[1], T, n, T, tail=max(3, n // 50))
 
 
 def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: float | None = None) -> StepResponse:
     """Response of the measured position to a unit position step (position loop at Tp, lifted; a
     continuous position loop sampled at the velocity period)."""
+    from .stability import position_closed_loop
+
     ctrl = an.loop.controller
+    Tv = ctrl.velocity_period
     duration = duration or max(10.0 / max(Kv, 1e-3), 0.2)
-    if ctrl.position_loop == "continuous":     # v_cmd = Kv (x_ref - x): close it, then sample exactly
-        A, B, C = an.analog_closed_loop(Kp, Ti)
-        T = ctrl.velocity_period
-        Ad, Bd = zoh_matrices(A - Kv * np.outer(B[:, 0], C[0]), Kv * B[:, :1], T)
-        return _step_with_marginal(Ad, Bd[:, 0], C[0], T, int(round(duration / T)))
-    Ap, Bp, C = an.position_model(Kp, Ti)
-    Bp = Bp[:, 0]
-    d = ctrl.position_delay
-    n_x = Ap.shape[0]
-    # closed position loop with a delay line of d samples on the velocity command
-    size = n_x + d
-    Acl = np.zeros((size, size))
-    Bcl = np.zeros(size)
-    Acl[:n_x, :n_x] = Ap
-    if d:
-        Acl[:n_x, n_x + d - 1] = Bp
-        Acl[n_x, :n_x] = -Kv * C[0]
-        Bcl[n_x] = Kv
-        for j in range(1, d):
-            Acl[n_x + j, n_x + j - 1] = 1.0
-    else:
-        Acl[:n_x, :n_x] -= Kv * np.outer(Bp, C[0])
-        Bcl[:n_x] = Kv * Bp
-    Ccl = np.zeros(size)
-    Ccl[:n_x] = C[0]
-    Tp = ctrl.position_period
-    return _step(Acl, Bcl, Ccl, Tp, int(round(duration / Tp)))
+    A, B, C, Tp = position_closed_loop(an, Kp, Ti, Kv)
+    if Tp is None:     # a continuous position loop: sampled exactly at the velocity period (a step is held)
+        A, B = zoh_matrices(A, B[:, None], Tv)
+        return _step(A, B[:, 0], C, Tv, int(round(duration / Tv)), Tv)
+    return _step(A, B, C, Tp, int(round(duration / Tp)), Tv)
 
 
 @dataclass(frozen=True)
@@ -155,16 +132,22 @@ class TimeTuningResult:
     targets_met: bool
     wall_time_s: float = 0.0
     notes: tuple[str, ...] = field(default_factory=tuple)
+    unmet: tuple[str, ...] = ()
+    margins: dict[str, float] = field(default_factory=dict)
+    stable: bool | None = None
+    warnings: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """The ``sicomat tune --method time --json`` object."""
         return {"method": "time", "velocity": {"Kp": self.Kp_normalized, "Kp_si": self.Kp, "Ti": self.Ti},
                 "position": {"Kv": self.Kv},
-                "achieved": {"velocity_overshoot_percent": self.velocity.overshoot_percent,
+                "achieved": {"velocity_overshoot_percent": self.velocity.to_dict()["overshoot_percent"],
                              "velocity_rise_time": self.velocity.rise_time,
-                             "position_overshoot_percent": self.position.overshoot_percent,
-                             "position_rise_time": self.position.rise_time, "targets_met": self.targets_met},
-                "iterations": list(self.iterations), "notes": list(self.notes), "wall_time_s": self.wall_time_s}
+                             "position_overshoot_percent": self.position.to_dict()["overshoot_percent"],
+                             "position_rise_time": self.position.rise_time, **self.margins,
+                             "targets_met": self.targets_met, "unmet": list(self.unmet)},
+                "iterations": list(self.iterations), "notes": list(self.notes), "wall_time_s": self.wall_time_s,
+                "stable": self.stable, "warnings": list(self.warnings)}
 
 
 def _bisect(f, lo: float, hi: float, target: float, tol: float, record, max_iter: int = 40) -> float:
@@ -244,10 +227,38 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
         kv_hi *= 2
     kv = _bisect(p_overshoot, kv_hi / 1e3, kv_hi, t.position_overshoot, 0.25, record_kv)
     pos = position_step(an, kp, ti, kv)
-    met = (abs(vel.overshoot_percent - goal) <= 0.5 * (high - low) and pos.stable
-           and abs(pos.overshoot_percent - t.position_overshoot) <= max(0.5, t.tolerance))
     if not vel.stable:
         raise AnalysisError("the velocity loop found by the time approach is unstable")
+    unmet = []
+    if abs(vel.overshoot_percent - goal) > 0.5 * (high - low):
+        unmet.append(f"velocity overshoot {vel.overshoot_percent:.3g} % outside {low:g}-{high:g} %")
+    if not abs(pos.overshoot_percent - t.position_overshoot) <= max(0.5, t.tolerance):
+        unmet.append(f"position overshoot {pos.overshoot_percent:.3g} % instead of {t.position_overshoot:g} %")
+    margins, margin_unmet = _margin_check(an, kp, ti, kv, t)
+    from .stability import loop_verdict
+
+    verdict = loop_verdict(loop, Kp=kp, Ti=ti, Kv=kv, an=an)
+    unmet += margin_unmet + list(verdict.warnings)
     return TimeTuningResult(Kp=kp, Kp_normalized=kp / m, Ti=ti, Kv=kv, velocity=vel, position=pos,
-                            iterations=tuple(iterations), targets_met=bool(met),
-                            wall_time_s=time.perf_counter() - start, notes=tuple(notes))
+                            iterations=tuple(iterations), targets_met=not unmet,
+                            wall_time_s=time.perf_counter() - start, notes=tuple(notes), unmet=tuple(unmet),
+                            margins=margins, stable=verdict.stable,
+                            warnings=tuple(f"not met: {u}" for u in unmet if u not in verdict.warnings)
+                            + verdict.warnings)
+
+
+def _margin_check(an: LoopAnalysis, kp: float, ti: float, kv: float, t: TimeTargets) -> tuple[dict[str, float], list[str]]:
+    """The tuned loop's margins as ``sicomat margins`` reports them, and the floors they miss."""
+    from .margins import stability_margins
+
+    out, unmet = {}, []
+    for name in ("velocity", "position"):
+        m = stability_margins(an.response(f"{name}-open", Kp=kp, Ti=ti, Kv=kv))
+        gm, pm = m.gain_margin_db, m.phase_margin_deg
+        out[f"{name}_gain_margin_db"] = float(gm) if np.isfinite(gm) else None
+        out[f"{name}_worst_phase_margin_deg"] = float(pm) if np.isfinite(pm) else None
+        if gm < t.min_gain_margin - 0.05:
+            unmet.append(f"{name} gain margin {gm:.1f} dB below {t.min_gain_margin:g} dB")
+        if pm < t.min_phase_margin - 0.05:
+            unmet.append(f"{name} worst phase margin {pm:.1f}° below {t.min_phase_margin:g}°")
+    return out, unmet

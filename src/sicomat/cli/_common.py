@@ -11,7 +11,12 @@ from typing import Any, Iterator, List, Optional
 
 import typer
 
-__all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "emit_json", "load"]
+__all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "emit_json", "load", "EXIT_UNSTABLE",
+           "exit_for"]
+
+EXIT_UNSTABLE = 3
+"""Exit status when the result is meaningless: the loop is unstable or its simulation diverged (the
+payload is still printed, with ``"stable": false``); 2 is bad input; warnings alone keep 0."""
 
 SetOption = typer.Option(
     None, "--set", metavar="KEY=VALUE",
@@ -47,6 +52,12 @@ def _fail(message: str) -> None:
 
     Console(stderr=True, highlight=False, soft_wrap=True).print(f"error: {message}", markup=False)
     raise typer.Exit(code=2)
+
+
+def exit_for(payload: dict[str, Any]) -> None:
+    """End the command with :data:`EXIT_UNSTABLE` when its payload says ``"stable": false``."""
+    if payload.get("stable") is False:
+        raise typer.Exit(code=EXIT_UNSTABLE)
 
 
 def load(model: Path, overrides: Optional[List[str]]):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-__all__ = ["bode_payload", "margins_payload", "write_tuned"]
+__all__ = ["bode_payload", "margins_payload", "write_tuned", "response_verdict", "verdict_subject"]
 
 
 def bode_payload(frf, margins) -> dict[str, Any]:
@@ -16,9 +16,51 @@ def bode_payload(frf, margins) -> dict[str, Any]:
     return out
 
 
-def margins_payload(velocity, position) -> dict[str, Any]:
-    """The ``sicomat margins --json`` object: both loops' margins (worst over all crossovers)."""
-    return {"velocity": velocity.to_dict(), "position": position.to_dict()}
+def _judged_loops(which: str) -> tuple[str, ...]:
+    """The closed loops a transfer depends on: none for the plant, the velocity loop for its own
+    transfers, the whole cascade for the others."""
+    if which == "plant":
+        return ()
+    return ("velocity",) if which.startswith("velocity") else ("velocity", "position")
+
+
+def verdict_subject(which: str) -> str:
+    """What the verdict of ``bode --loop which`` is about, for the table."""
+    return {(): "plant", ("velocity",): "velocity loop"}.get(_judged_loops(which), "position loop")
+
+
+def response_verdict(servo, an, which: str, margins):
+    """The verdict of ``bode --loop which``: the poles of the closed loops the transfer depends on
+    (unknown, None, for the plant alone) and, for an open loop, what its margins say."""
+    from ..stability import Verdict, loop_verdict, margins_warnings
+
+    loops = _judged_loops(which)
+    if not loops:
+        return Verdict(None)
+    verdict = loop_verdict(servo, an=an, loops=loops)
+    if margins is not None:
+        name = "velocity" if which.startswith("velocity") else "position"
+        verdict = verdict.with_warnings(margins_warnings(
+            margins, name, verdict.loops.get(name, verdict.stable),
+            open_loop_unstable=name == "position" and verdict.loops.get("velocity") is False))
+    return verdict
+
+
+def margins_payload(servo, an, velocity, position) -> dict[str, Any]:
+    """The ``sicomat margins --json`` object: both loops' margins (worst over all crossovers), each
+    with its ``stable`` verdict (the closed loop's poles) beside the deprecated ``stable_hint``, and
+    the verdict of the whole cascade with the warnings."""
+    from ..stability import loop_verdict, margins_warnings
+
+    verdict = loop_verdict(servo, an=an)
+    warnings = []
+    out: dict[str, Any] = {}
+    for name, margins in (("velocity", velocity), ("position", position)):
+        stable = verdict.loops.get(name)
+        out[name] = {**margins.to_dict(), "stable": stable}
+        warnings += margins_warnings(margins, name, stable,
+                                     open_loop_unstable=name == "position" and verdict.loops.get("velocity") is False)
+    return {**out, **verdict.with_warnings(warnings).to_dict()}
 
 
 def write_tuned(machine, axis: str, gains: dict[str, float], notch: dict[str, float] | None, path: Path,

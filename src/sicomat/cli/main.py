@@ -7,7 +7,7 @@ from typing import List, Optional
 
 import typer
 
-from ._common import AxisOption, JsonOption, PlotOption, SetOption, emit_json, guarded, load
+from ._common import AxisOption, JsonOption, PlotOption, SetOption, emit_json, exit_for, guarded, load
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="SICOMAT: simulation and control analysis of machine-tool feed axes.")
@@ -92,44 +92,57 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         if gcode is not None:
             from .simulate_cmd import simulate_gcode
 
-            run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear)
-            if out is not None:
+            payload, run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear)
+            if run is not None and out is not None:
                 from ..timeseries import write_frame_csv
 
                 write_frame_csv(run.to_pandas(), out)
-            if plot is not None:
+            if run is not None and plot is not None:
                 from ..plotting import save_figure
 
                 save_figure(run.plot(), plot)
-            payload = run.to_dict()
-            summary = {key: max((a[key] for a in payload["axes"].values() if a[key] is not None), key=abs)
-                       for key in ("max_following_error", "rms_following_error", "final_error", "overshoot_percent")}
-            payload = {**summary, **payload}
             if json_:
                 emit_json(payload)
             else:
-                from .tables import print_path
+                from .tables import print_path, print_verdict
 
-                print_path(payload)
+                if run is not None:
+                    print_path(payload)
+                print_verdict(payload, "axes")
+            exit_for(payload)
             return
+        from ..simulate.checks import diverged_verdict, simulation_verdict
+        from ..simulate.kernel import SimulationDiverged
+        from .simulate_cmd import diverged_payload
+
         loop = build_servo_loop(machine, axis)
         profile, default_duration = choose_profile(machine.axes[loop.axis].trajectory, step, move,
                                                    max_velocity, max_acceleration)
-        series = run_simulation(loop, profile, duration if duration is not None else default_duration,
-                                nonlinear=not linear)
-        if out is not None:
-            series.to_csv(out)
-        if plot is not None:
-            from ..plotting import save_figure
+        try:
+            series = run_simulation(loop, profile, duration if duration is not None else default_duration,
+                                    nonlinear=not linear)
+        except SimulationDiverged as exc:
+            from ..simulate import simulation_notes
 
-            save_figure(series.plot(), plot)
-        payload = simulate_payload(series)
+            verdict = diverged_verdict(loop, exc)
+            if out is not None or plot is not None:
+                verdict = verdict.with_warnings(["nothing was written (--out, --plot): the run has no data"])
+            payload = diverged_payload(loop, exc, verdict, simulation_notes(loop, not linear))
+        else:
+            if out is not None:
+                series.to_csv(out)
+            if plot is not None:
+                from ..plotting import save_figure
+
+                save_figure(series.plot(), plot)
+            payload = simulate_payload(series, simulation_verdict(loop, series, profile))
         if json_:
             emit_json(payload)
         else:
             from .tables import print_metrics
 
             print_metrics(loop.axis, payload)
+        exit_for(payload)
 
 
 @app.command()
@@ -157,19 +170,25 @@ def bode(model: Path = ModelArgument,
             from ..margins import stability_margins
 
             margins = stability_margins(frf)
+        from .analysis_cmd import response_verdict, verdict_subject
+
+        verdict = response_verdict(servo, an, loop, margins)
         if plot is not None:
             from ..freqplot import bode_figure, nichols_figure
             from ..plotting import save_figure
 
             figure = nichols_figure([frf], margins=margins) if nichols else bode_figure([frf], margins=margins)
             save_figure(figure, plot)
+        payload = {**bode_payload(frf, margins), **verdict.to_dict()}
         if json_:
-            emit_json(bode_payload(frf, margins))
+            emit_json(payload)
         else:
-            from .tables import print_margins
+            from .tables import print_margins, print_verdict
 
             print_margins(servo.axis, {frf.name: margins} if margins is not None else {},
                           note=f"{frf.name}: {len(frf.omega)} points up to {frf.omega[-1]:.4g} rad/s")
+            print_verdict(payload, verdict_subject(loop))
+        exit_for(payload)
 
 
 @app.command()
@@ -187,12 +206,15 @@ def margins(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         an = LoopAnalysis.of(servo)
         velocity = stability_margins(an.response("velocity-open"))
         position = stability_margins(an.response("position-open"))
+        payload = {"axis": servo.axis, **margins_payload(servo, an, velocity, position)}
         if json_:
-            emit_json({"axis": servo.axis, **margins_payload(velocity, position)})
+            emit_json(payload)
         else:
-            from .tables import print_margins
+            from .tables import print_margins, print_verdict
 
             print_margins(servo.axis, {"velocity": velocity, "position": position})
+            print_verdict(payload, "loops")
+        exit_for(payload)
 
 
 @app.command()
@@ -226,9 +248,9 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         machine = load(model, set_)
         servo = build_servo_loop(machine, axis)
         if method == "time":
-            from ..tuning_time import tune_time
+            from ..tuning_time import TimeTargets, tune_time
 
-            result = tune_time(servo)
+            result = tune_time(servo, TimeTargets(min_gain_margin=min_gain_margin))
             payload = result.to_dict()
             gains = {"Kp": result.Kp, "Kp_normalized": result.Kp_normalized, "Ti": result.Ti, "Kv": result.Kv}
             notch = None
@@ -246,6 +268,8 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             if chosen is not result:
                 payload["achieved"]["notch"] = result.notch
                 payload["notch_applied"] = True
+            elif result.with_notch is not None and result.with_notch.targets_met:
+                payload["warnings"].append("the suggested notch would meet the targets: --apply-notch")
             payload["wall_time_s"] = result.wall_time_s
             t = chosen.tuned
             gains = {"Kp": t.Kp, "Kp_normalized": t.Kp_normalized, "Ti": t.Ti, "Kv": t.Kv}
@@ -256,9 +280,11 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         if json_:
             emit_json({"axis": servo.axis, **payload})
         else:
-            from .tables import print_tuning
+            from .tables import print_tuning, print_verdict
 
             print_tuning(servo.axis, payload)
+            print_verdict(payload, "tuned loop")
+        exit_for(payload)
 
 
 @app.command()
@@ -289,16 +315,23 @@ def circle(model: Path = ModelArgument,
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         test = circle_test(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw, feedforward=feedforward)
+        payload = test.to_dict()
         if plot is not None:
-            from ..plotting import save_figure
+            if test.circle is not None:
+                from ..plotting import save_figure
 
-            save_figure(test.plot(magnification), plot)
+                save_figure(test.plot(magnification), plot)
+            else:
+                payload["warnings"].append("no figure written (--plot): an axis is unstable")
         if json_:
-            emit_json(test.to_dict())
+            emit_json(payload)
         else:
-            from .tables import print_circle
+            from .tables import print_circle, print_verdict
 
-            print_circle(test.to_dict())
+            if test.circle is not None:
+                print_circle(payload)
+            print_verdict(payload, "axes")
+        exit_for(payload)
 
 
 @app.command()
@@ -379,8 +412,12 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         Ti = servo.Ti if ti is None else ti
         Kv = servo.Kv if kv is None else kv
         response = velocity_step(an, Kp, Ti, duration) if loop == "velocity" else position_step(an, Kp, Ti, Kv, duration)
+        from ..stability import loop_verdict
+
+        verdict = loop_verdict(servo, Kp=Kp, Ti=Ti, Kv=Kv, an=an,
+                               loops=("velocity",) if loop == "velocity" else ("velocity", "position"))
         payload = {"axis": servo.axis, "loop": loop, "Kp": Kp / servo.m_rigid, "Kp_si": Kp, "Ti": Ti, "Kv": Kv,
-                   **response.to_dict()}
+                   **response.to_dict(), **verdict.to_dict()}
         if plot is not None:
             from ..plotting import plot_step, save_figure
 
@@ -390,11 +427,15 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         else:
             from rich.console import Console
 
+            from .tables import print_verdict
+
             rise = "-" if response.rise_time is None else f"{response.rise_time * 1e3:.3g} ms"
+            over = "-" if payload["overshoot_percent"] is None else f"{payload['overshoot_percent']:.3g} %"
             Console(highlight=False).print(
                 f"{loop} loop, Kp = {payload['Kp']:.4g} 1/s, Ti = {Ti:.4g} s, Kv = {Kv:.4g} 1/s: "
-                f"overshoot {response.overshoot_percent:.3g} %, rise time {rise}"
-                + ("" if response.stable else " [unstable]"))
+                f"overshoot {over}, rise time {rise}")
+            print_verdict(payload, f"{loop} loop")
+        exit_for(payload)
 
 
 _LOOP_NAMES = ("plant", "velocity-open", "velocity-closed", "position-open", "position-closed",

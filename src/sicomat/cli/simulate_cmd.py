@@ -6,7 +6,10 @@ from typing import Any
 
 from ..errors import ModelError
 
-__all__ = ["choose_profile", "simulate_payload"]
+__all__ = ["choose_profile", "simulate_payload", "diverged_payload", "STEP_FIGURES"]
+
+STEP_FIGURES = ("overshoot_percent", "rise_time", "settling_time")
+"""Figures of a settling step response: None (null) when the loop is unstable."""
 
 DEFAULT_MAX_VELOCITY = 0.2   # m/s, for --move without limits in the model
 DEFAULT_MAX_ACCELERATION = 2.0  # m/s^2
@@ -37,16 +40,35 @@ def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration)
     return profile, profile.end_time + (0.2 if profile.kind != "ramp" else 0.3)
 
 
-def simulate_payload(series) -> dict[str, Any]:
-    """The ``sicomat simulate --json`` object."""
-    m = series.metrics
-    return {"axis": series.info["axis"], **m.to_dict(), "samples": series.info["samples"],
-            "step_s": series.info["step"], "duration_s": float(series.info["samples"] * series.info["step"]),
-            "wall_time_s": series.info["wall_time_s"], "notes": list(series.info.get("notes", []))}
+def simulate_payload(series, verdict=None) -> dict[str, Any]:
+    """The ``sicomat simulate --json`` object, with the run's ``stable`` verdict and ``warnings``
+    (:func:`sicomat.simulate.checks.simulation_verdict`); an unstable loop has no step figures."""
+    m = series.metrics.to_dict()
+    out = {"axis": series.info["axis"], **m, "samples": series.info["samples"],
+           "step_s": series.info["step"], "duration_s": float(series.info["samples"] * series.info["step"]),
+           "wall_time_s": series.info["wall_time_s"], "notes": list(series.info.get("notes", []))}
+    if verdict is not None:
+        if verdict.stable is False:
+            out.update({key: None for key in STEP_FIGURES})
+        out.update({"diverged": False, **verdict.to_dict()})
+    return out
+
+
+def diverged_payload(loop, exc, verdict, notes) -> dict[str, Any]:
+    """The ``sicomat simulate --json`` object of a run that diverged: no figures, the time it diverged."""
+    from ..timeseries import StepMetrics
+
+    figures = {key: None for key in StepMetrics.__dataclass_fields__}
+    return {"axis": loop.axis, **figures, "samples": int(exc.step), "step_s": loop.base_period,
+            "duration_s": float(exc.time), "wall_time_s": None, "notes": list(notes), "diverged": True,
+            "divergence_time": float(exc.time), **verdict.to_dict()}
 
 
 def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True):
-    """Parse a G-code file, interpolate it with the machine's interpolator, simulate the axes it moves."""
+    """Parse a G-code file, interpolate it with the machine's interpolator, simulate the axes it moves.
+
+    Returns the ``simulate --gcode --json`` object and the :class:`~sicomat.multiaxis.PathRun` (None
+    when an axis diverged: the payload then has the verdict and no figures)."""
     from pathlib import Path as _Path
 
     from ..gcode import parse_gcode
@@ -74,4 +96,17 @@ def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlin
     feed = feed_mm_min * 1e-3 / 60.0 if feed_mm_min is not None else None
     samples = interpolate(path, feed, ip.max_acceleration, ip.max_jerk, period,
                           corner_tolerance=ip.corner_tolerance)
-    return simulate_path(machine, samples, nonlinear=nonlinear)
+    from ..multiaxis import axes_verdict
+    from ..simulate.kernel import SimulationDiverged
+
+    try:
+        run = simulate_path(machine, samples, nonlinear=nonlinear)
+    except SimulationDiverged as exc:
+        verdict = axes_verdict(machine, path.axis_names).with_warnings([str(exc)], unstable=True)
+        return {"max_following_error": None, "rms_following_error": None, "final_error": None,
+                "path_length": float(path.length), "diverged": True, "divergence_time": float(exc.time),
+                **verdict.to_dict()}, None
+    payload = run.to_dict()
+    summary = {key: max((a[key] for a in payload["axes"].values() if a[key] is not None), key=abs)
+               for key in ("max_following_error", "rms_following_error", "final_error")}
+    return {**summary, **payload, "diverged": False}, run

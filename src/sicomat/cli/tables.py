@@ -9,7 +9,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..modal import ModalResult
     from ..model import Machine
 
-__all__ = ["check_payload", "print_check", "print_modal"]
+__all__ = ["check_payload", "print_check", "print_modal", "print_verdict"]
 
 
 def check_payload(machine: "Machine", mechanics: dict[str, "Mechanics"]) -> dict[str, Any]:
@@ -114,13 +114,32 @@ def print_modal(axis: str, result: "ModalResult") -> None:
         console.print(f"suggested f_meca = {result.f_meca_hz:.4g} Hz (first flexible mode the loop sees)")
 
 
+def print_verdict(payload: dict[str, Any], what: str = "loop") -> None:
+    """Print the stability verdict (``"stable"``) and the warnings of a payload, as ``--json`` has them."""
+    from rich.console import Console
+
+    console = Console(highlight=False)
+    stable = payload.get("stable")
+    if stable is True:
+        console.print(f"{what}: [bold green]stable[/]")
+    elif stable is False:
+        console.print(f"{what}: [bold red]UNSTABLE[/] (the figures are not meaningful)")
+    else:
+        console.print(f"{what}: stability unknown")
+    from rich.markup import escape
+
+    for warning in payload.get("warnings", []):
+        console.print(f"[yellow]warning:[/] {escape(warning)}")
+
+
 def print_metrics(axis: str, payload: dict[str, Any]) -> None:
     """Print the figures of ``sicomat simulate``."""
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"axis {axis}: simulation ({payload['samples']} steps of {payload['step_s'] * 1e6:g} µs, "
-                        f"{payload['wall_time_s'] * 1e3:.1f} ms)", title_justify="left")
+    wall = "" if payload.get("wall_time_s") is None else f", {payload['wall_time_s'] * 1e3:.1f} ms"
+    table = Table(title=f"axis {axis}: simulation ({payload['samples']} steps of {payload['step_s'] * 1e6:g} µs"
+                        f"{wall})", title_justify="left")
     table.add_column("figure")
     table.add_column("value", justify="right")
     for key, scale, unit in (("max_following_error", 1e6, "µm"), ("rms_following_error", 1e6, "µm"),
@@ -132,6 +151,7 @@ def print_metrics(axis: str, payload: dict[str, Any]) -> None:
     console.print(table)
     for note in payload.get("notes", []):
         console.print(f"note: {note}")
+    print_verdict(payload)
 
 
 def print_margins(axis: str, margins: dict[str, Any], note: str | None = None) -> None:
@@ -184,8 +204,7 @@ def print_tuning(axis: str, payload: dict[str, Any]) -> None:
         if key in ("unmet",) or value is None:
             continue
         console.print(f"  {key}: {value:.4g}" if isinstance(value, float) else f"  {key}: {value}")
-    for item in achieved.get("unmet", []):
-        console.print(f"  [yellow]not met:[/] {item}")
+    # the unmet targets are among the warnings, printed with the verdict (print_verdict)
     if "equivalent_delay_s" in payload:
         console.print(f"  equivalent delay of the rigid tuning: {payload['equivalent_delay_s'] * 1e3:.3f} ms")
     console.print(f"  tuning time: {payload['wall_time_s'] * 1e3:.1f} ms")
