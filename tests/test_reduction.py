@@ -146,8 +146,10 @@ def test_modal_truncation_rigid_mode_and_one_flexible_mode_make_four_states():
 
 
 def test_modal_truncation_never_splits_a_complex_pair():
+    # the warning (not a note) is what `reduce --json` and its table show
     res = modal_truncation(plant_of(chain(8)), 5)
-    assert res.order_after == 4 and any("split" in note for note in res.notes)
+    assert res.order_after == 4 and any("split" in w and "4 or 6" in w for w in res.warnings)
+    assert res.to_dict()["warnings"] == list(res.warnings)
 
 
 def test_modal_truncation_matches_python_control_modal_form_and_modred():
@@ -527,14 +529,138 @@ def test_reduce_command_json_contract(method, order, keep, band):
     if order is not None:
         assert payload["order_after"] == order
     assert payload["frequencies_hz"][0] == 0.0  # the rigid-body mode is kept
-    if method in ("modal", "physical"):  # the balanced ones choose by Hankel singular value
-        assert_allclose(payload["frequencies_hz"][1], 80.6014, rtol=1e-3)
+    # with the default transfer (motor → scale) every method keeps f_meca first
+    assert_allclose(payload["frequencies_hz"][1], 80.6014, rtol=1e-3)
+    assert payload["warnings"] == []
     for pair in payload["retained_frequencies"]:
         assert set(pair) == {"reduced_hz", "full_hz", "relative_error"}
     if method == "physical":
         assert res.machine is not None and res.spec is not None and payload["kept"]
     else:
         assert res.machine is None
+
+
+# --------------------------------------------------------------------------- the transfer that is reduced
+def _f_meca_of_5m4s() -> float:
+    """The 80.6 Hz mode the tuning is built on, from the modal analysis of the full mechanics."""
+    from sicomat.modal import modal_analysis
+
+    modes = modal_analysis(build_mechanics(paper_5m4s().axis().mechanics))
+    assert_allclose(modes.f_meca_hz, 80.6, rtol=1e-3)
+    return modes.f_meca_hz
+
+
+@pytest.mark.parametrize("method, band", [
+    ("modal", None), ("balanced", None), ("balanced-dc", None), ("schur", None), ("hankel", None),
+    ("balanced", "0:500"),     # the frequency-limited Gramians
+    ("physical", None),
+])
+def test_paper_5m4s_order_4_keeps_f_meca_for_every_method(method, band):
+    # Default transfer motor → scale (the loop's actuator and position sensor). With both sensors in
+    # raw SI units the velocity output (m/s = ω·m) weighs the 374 Hz mode 4.6 times more than the
+    # 80.6 Hz one and the balanced methods kept 374 Hz. Tolerance 1 %: the methods other than modal
+    # truncation do not keep poles exactly (the Hankel-norm one moves 80.6 Hz by 1e-5).
+    res = reduce_command(paper_5m4s(), None, method, 4, None, band)
+    assert res.order_after == 4 and res.full.inputs == ("motor",) and res.full.outputs == ("scale",)
+    payload = res.to_dict()
+    assert payload["inputs"] == ["motor"] and payload["outputs"] == ["scale"]
+    assert any("--outputs scale by default" in note for note in payload["notes"])
+    flexible = [f for f in res.frequencies_hz if f > 0]
+    assert len(flexible) == 1 and flexible[0] == pytest.approx(_f_meca_of_5m4s(), rel=0.01)
+
+
+def test_a_chosen_transfer_is_the_one_reduced():
+    machine = paper_5m4s()
+    full = build_mechanics(machine.axis().mechanics).state_space()
+    res = reduce_command(machine, None, "balanced", 4, None, None, outputs="scale_velocity")
+    assert res.full.outputs == ("scale_velocity",) and res.reduced.outputs == ("scale_velocity",)
+    omega = np.array([10.0, 500.0, 2000.0])
+    # the full model reported is the chosen column, by dense solves on the original plant
+    assert_allclose(frf(res.full, omega), frf(full, omega)[:, [1], :], rtol=1e-12)
+    # both outputs in SI units: the velocity channel dominates and 374 Hz is kept, not 80.6 Hz
+    mixed = reduce_command(machine, None, "balanced", 4, None, None, outputs=["scale", "scale_velocity"])
+    assert mixed.full.outputs == ("scale", "scale_velocity")
+    assert [f for f in mixed.frequencies_hz if f > 0] == [pytest.approx(374.02, rel=1e-3)]
+    # the Python reductors take the names too
+    direct = balanced_truncation(full, 4, inputs=["motor"], outputs=["scale"])
+    assert direct.full.outputs == ("scale",)
+    assert [f for f in direct.frequencies_hz if f > 0] == [pytest.approx(80.6, rel=1e-3)]
+    # the same computation as the command's default transfer (same operations: equal to round-off)
+    default = reduce_command(machine, None, "balanced", 4, None, None)
+    assert_allclose(frf(direct.reduced, omega), frf(default.reduced, omega), rtol=1e-12)
+
+
+@pytest.mark.parametrize("inputs, outputs, option, match", [
+    (None, "ghost", "--outputs", "expected names among scale, scale_velocity"),
+    ("primary", None, "--inputs", "expected names among motor"),
+    (",", None, "--inputs", "signal names separated by commas"),
+    (None, "scale,scale", "--outputs", "named twice"),
+])
+def test_unknown_signals_are_model_errors_listing_the_signals(inputs, outputs, option, match):
+    with pytest.raises(ModelError, match=match) as info:
+        reduce_command(paper_5m4s(), None, "modal", 4, None, None, inputs, outputs)
+    assert info.value.source == option
+    with pytest.raises(ModelError, match="expected names among"):
+        modal_truncation(plant_of(chain(4)), 4, outputs=["nope"])
+
+
+def test_default_transfer_without_a_controller_takes_the_position_sensors():
+    from sicomat.reduction.cli_support import default_transfer
+
+    machine = sicomat_machine({"axes": {"X": {"mechanics": {
+        "type": "lumped", "bodies": {"a": {"mass": 1.0}, "b": {"mass": 2.0}},
+        "couplings": {"k": {"between": ["a", "b"], "stiffness": 1e6}},
+        "actuators": {"f": {"body": "a"}},
+        "sensors": {"pa": {"body": "a"}, "vb": {"body": "b", "kind": "velocity"}, "pb": {"body": "b"}}}}}})
+    inputs, outputs, _ = default_transfer(machine.axis())
+    assert inputs == ["f"] and outputs == ["pa", "pb"]
+    res = reduce_command(machine, None, "modal", 2, None, None)
+    assert res.full.outputs == ("pa", "pb")
+
+
+def sicomat_machine(data):
+    from sicomat import machine_from_dict
+
+    return machine_from_dict(data)
+
+
+# --------------------------------------------------------------------------- `reduce MODEL` as a newcomer types it
+def test_reduce_without_options_keeps_the_modes_below_twice_the_velocity_nyquist_frequency():
+    from typer.testing import CliRunner
+
+    from sicomat.cli.main import app
+    from sicomat.modal import modal_analysis
+
+    result = CliRunner().invoke(app, ["reduce", str(EXAMPLES / "paper_5m4s.toml"), "--json"])
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    machine = paper_5m4s()
+    nyquist = 0.5 / machine.axis().controller.velocity_period            # 4 kHz
+    modes = modal_analysis(build_mechanics(machine.axis().mechanics)).modes
+    expected = 2 + 2 * sum(1 for m in modes if not m.rigid and m.frequency_hz <= 2 * nyquist)
+    assert payload["order_after"] == expected == 8    # 80.6, 374 and 5627 Hz; not 10.8 kHz
+    assert payload["band_hz"] == [0.0, nyquist]
+    assert any("Nyquist" in note for note in payload["notes"])
+    text = CliRunner().invoke(app, ["reduce", str(EXAMPLES / "paper_5m4s.toml")])
+    assert text.exit_code == 0 and "transfer: motor → scale" in text.stdout
+
+
+def test_an_order_inside_a_complex_pair_is_rounded_down_and_said():
+    from typer.testing import CliRunner
+
+    from sicomat.cli.main import app
+
+    model = str(EXAMPLES / "paper_5m4s.toml")
+    result = CliRunner().invoke(app, ["reduce", model, "--order", "5", "--json"])
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    assert payload["order_after"] == 4
+    assert len(payload["warnings"]) == 1 and "split" in payload["warnings"][0] and "4 or 6" in payload["warnings"][0]
+    text = CliRunner().invoke(app, ["reduce", model, "--order", "5"])
+    assert "warning" in text.stdout and "4 or 6" in text.stdout
+    # balanced methods keep an odd order (a real pole that is no mode; the error bound holds) and say so
+    res = reduce_command(paper_5m4s(), None, "balanced", 5, None, None)
+    assert res.order_after == 5 and any("real pole" in w for w in res.warnings)
 
 
 def test_modal_order_from_band_keeps_modes_up_to_twice_the_band():

@@ -13,7 +13,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import pandas
 
 __all__ = ["FrequencyResponse", "ModalForm", "modal_form", "continuous_response", "sampled_response",
-           "response_at", "zoh_matrices"]
+           "response_at", "zoh_matrices", "static_gain"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -210,3 +210,87 @@ def zoh_matrices(A: np.ndarray, B: np.ndarray, period: float) -> tuple[np.ndarra
     aug[:n, n:] = B * period
     E = scipy.linalg.expm(aug)
     return E[:n, :n], E[:n, n:]
+
+
+STATIC_POLE_TOL = 1e-9
+""":func:`static_gain` takes the eigenvalues within ``STATIC_POLE_TOL · max(1, ‖A‖₁)`` (``A``
+diagonally balanced) of the point ``s = 0`` or ``z = 1`` as poles *at* it. A pole at exactly the
+point (an integrator, a rigid-body drift) is computed to ``eps·‖A‖/sep`` (≈ 1e-16 on the 5M4S
+loops, whose next eigenvalue is 1e-2 away); the tolerance leaves seven orders of magnitude on both
+sides: a pole ``1e-9·‖A‖`` away from 0 is a time constant of hours for a feed axis."""
+
+
+def static_gain(A, B, C, D=None, *, discrete: bool) -> np.ndarray:
+    """The exact value at ω = 0 of ``C (pI − A)⁻¹ B + D``: at ``p = 1`` (``z = 1``) for a discrete
+    ``A``, at ``p = 0`` (``s = 0``) for a continuous one.
+
+    Eigenvalues at the point (within :data:`STATIC_POLE_TOL`) are split off by an ordered real
+    Schur form and a Sylvester equation: with ``N = A₁ − pI`` (made exactly nilpotent), their part
+    of the transfer is ``Σⱼ C₁Nʲ B₁ / (p' − p)^{j+1}``, a polynomial in ``1/(p' − p)`` without a
+    constant term. When every coefficient vanishes (the pole is not seen from that input to that
+    output, e.g. the drift of the rigid-body position in a velocity loop: the positions ramp, the
+    measured velocity does not) the singularity is removable and the value is that of the other
+    part, ``D + C₂ (pI − A₂)⁻¹ B₂``, the exact limit; otherwise the entry is ``inf`` (a pole at 0).
+
+    Parameters
+    ----------
+    A, B, C : array_like
+        State space, shapes ``(n, n)``, ``(n, m)``, ``(q, n)``.
+    D : array_like, optional
+        Feedthrough ``(q, m)``; zero by default.
+    discrete : bool
+        True for a sampled system (evaluated at ``z = 1``), False for a continuous one (``s = 0``).
+
+    Returns
+    -------
+    ndarray, shape (q, m)
+        Real static gains; ``inf`` for an entry with a pole at the point.
+
+    Examples
+    --------
+    A velocity loop ``1/(m s)`` under a PI ``Kp (1 + 1/(Ti s))``, states (position, velocity,
+    integral): the position drifts (a pole at 0 the measured velocity does not see) and the closed
+    loop's static gain is exactly 1:
+
+    >>> import numpy as np
+    >>> m, kp, ti = 2.0, 50.0, 0.1
+    >>> A = np.array([[0, 1, 0], [0, -kp / m, 1 / m], [0, -kp / ti, 0]])
+    >>> B = np.array([[0], [kp / m], [kp / ti]])
+    >>> round(float(static_gain(A, B, [[0, 1, 0]], discrete=False)[0, 0]), 12)
+    1.0
+    >>> float(static_gain(A, B, [[1, 0, 0]], discrete=False)[0, 0])   # the position: a pole at 0
+    inf
+    """
+    A = np.atleast_2d(np.asarray(A, dtype=float))
+    B = np.asarray(B, dtype=float).reshape(A.shape[0], -1)
+    C = np.asarray(C, dtype=float).reshape(-1, A.shape[0])
+    D = np.zeros((C.shape[0], B.shape[1])) if D is None else np.asarray(D, dtype=float).reshape(C.shape[0], B.shape[1])
+    n = A.shape[0]
+    if n == 0:
+        return D.copy()
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B)) and np.all(np.isfinite(C))):
+        raise ValueError("static_gain: the state space has non-finite entries")
+    p = 1.0 if discrete else 0.0
+    _, (scale, _) = scipy.linalg.matrix_balance(A, permute=False, separate=True)
+    A = (A * scale[None, :]) / scale[:, None]
+    B = B / scale[:, None]
+    C = C * scale[None, :]
+    tol = STATIC_POLE_TOL * max(1.0, float(np.linalg.norm(A, 1)))
+    T, Z, k = scipy.linalg.schur(A, output="real", sort=lambda re, im: np.hypot(re - p, im) <= tol)
+    Bz, Cz = Z.T @ B, C @ Z
+    if k == 0:
+        return D - Cz @ np.linalg.solve(T - p * np.eye(n), Bz)
+    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
+    X = scipy.linalg.solve_sylvester(T11, -T22, -T12) if k < n else np.zeros((k, 0))
+    B1, C1 = Bz[:k] - X @ Bz[k:], Cz[:, :k]
+    B2, C2 = Bz[k:], Cz[:, :k] @ X + Cz[:, k:]
+    out = D - C2 @ np.linalg.solve(T22 - p * np.eye(n - k), B2) if k < n else D.copy()
+    # Laurent coefficients of the part at the point; "vanishing" is relative to round-off of C·B
+    N = np.triu(T11 - p * np.eye(k), 1)
+    floor = np.sqrt(np.finfo(float).eps) * np.linalg.norm(C, 2) * np.linalg.norm(B, 2)
+    power = np.eye(k)
+    seen = np.zeros(out.shape, dtype=bool)
+    for j in range(k):
+        seen |= np.abs(C1 @ power @ B1) > floor * max(1.0, np.linalg.norm(N, 2)) ** j
+        power = power @ N
+    return np.where(seen, np.inf, out)

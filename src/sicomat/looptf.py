@@ -23,7 +23,7 @@ import numpy as np
 
 from .controller import DiscreteSS, continuous_filter, filter_block
 from .errors import ModelError
-from .frequency import FrequencyResponse, modal_form, response_at, zoh_matrices
+from .frequency import FrequencyResponse, modal_form, response_at, static_gain, zoh_matrices
 
 if TYPE_CHECKING:  # pragma: no cover
     from .loop import ServoLoop
@@ -243,6 +243,51 @@ class LoopAnalysis:
         H = _response(A, B, C[:1], 1j * np.asarray(omega, dtype=float))
         return H[0, 0], H[0, 1]
 
+    def closed_loop_static_gain(self, which: str, Kp: float | None = None, Ti: float | None = None,
+                                Kv: float | None = None) -> float:
+        """The exact static gain ``T(0)`` of ``T = L/(1 + L)`` for the loop gain ``which``
+        (``"velocity-open"`` or ``"position-open"``), with the loop's gains or the ones given.
+
+        The closed loop's state space is evaluated at ``z = 1`` (``s = 0`` for a continuous loop) by
+        :func:`~sicomat.frequency.static_gain`, which takes the exact limit through the removable
+        pole of the rigid-body drift. The velocity loop: ``L_v`` is the same for P-PI and P-IP, so
+        ``T_v`` is the P-PI loop from the velocity command. The position loop: ``Kv·z^{−d}·g_v``
+        around the lifted (or analog) velocity loop, delay line included; a continuous position
+        loop's delay ``e^{−s d Tp}`` is 1 at ``s = 0``. With an integrator in the loop the value is
+        1 to round-off (it is computed, not assumed).
+        """
+        loop, ctrl = self.loop, self.loop.controller
+        Kp = loop.Kp if Kp is None else Kp
+        Ti = loop.Ti if Ti is None else Ti
+        Kv = loop.Kv if Kv is None else Kv
+        if which == "velocity-open":
+            pi = LoopAnalysis(_with_controller(loop, type="P-PI"), self.Phi, self.Gamma, self.c_pos,
+                              self.c_vel, self.differenced, self.analog)
+            A, B, C = pi.analog_closed_loop(Kp, Ti) if self.analog else pi.velocity_closed_loop(Kp, Ti)
+            return float(static_gain(A, B[:, :1], C[1:2], discrete=not self.analog)[0, 0])
+        if which != "position-open":
+            raise ModelError(f"expected 'velocity-open' or 'position-open', got {which!r}", path="which")
+        if ctrl.position_loop == "continuous":
+            A, B, C = self.analog_closed_loop(Kp, Ti)
+            b, c = B[:, :1], C[:1]
+            return float(static_gain(A - Kv * b @ c, Kv * b, c, discrete=False)[0, 0])
+        Ap, Bp, C = self.position_model(Kp, Ti)
+        n, d = Ap.shape[0], ctrl.position_delay
+        b, c = Bp[:, :1], C[:1]
+        # states (x, q_1..q_d): q_1 ← Kv (r − c x), q_j ← q_{j−1}, the velocity command is q_d
+        A = np.zeros((n + d, n + d))
+        B = np.zeros((n + d, 1))
+        A[:n, :n] = Ap
+        if d == 0:
+            A[:n, :n] -= Kv * b @ c
+            B[:n] = Kv * b
+        else:
+            A[:n, n + d - 1:] = b
+            A[n:n + 1, :n] = -Kv * c
+            B[n, 0] = Kv
+            A[n + 1:, n:n + d - 1] = np.eye(d - 1)
+        return float(static_gain(A, B, np.hstack([c, np.zeros((1, d))]), discrete=True)[0, 0])
+
     # ------------------------------------------------------------------ public
     def response(self, which: str, omega: np.ndarray | None = None, *, Kp: float | None = None,
                  Ti: float | None = None, Kv: float | None = None) -> FrequencyResponse:
@@ -265,7 +310,9 @@ class LoopAnalysis:
             L = (cp + ci) * act * meas
             if which == "velocity-open":
                 return FrequencyResponse(omega, L, which, Tv, open_loop=True,
-                                         info={"input": "velocity error", "output": "measured velocity"})
+                                         info={"input": "velocity error", "output": "measured velocity",
+                                               "closed_loop_static_gain":
+                                                   self.closed_loop_static_gain(which, Kp, Ti, Kv)})
             forward = (cp + ci) if ctrl.type == "P-PI" else ci
             return FrequencyResponse(omega, forward * act * meas / (1.0 + L), which, Tv,
                                      info={"input": "velocity command", "output": "measured velocity"})
@@ -279,7 +326,8 @@ class LoopAnalysis:
         L = Kv * z ** (-ctrl.position_delay) * g_v
         if which == "position-open":
             return FrequencyResponse(omega, L, which, Tp, open_loop=True,
-                                     info={"input": "position error", "output": "measured position"})
+                                     info={"input": "position error", "output": "measured position",
+                                           "closed_loop_static_gain": self.closed_loop_static_gain(which, Kp, Ti, Kv)})
         ff = ctrl.velocity_feedforward * diff * np.exp(-1j * omega * ctrl.feedforward_delay) * g_v \
             + ctrl.acceleration_feedforward * loop.m_rigid * diff ** 2 * np.exp(-1j * omega * ctrl.feedforward_delay) * g_f
         T = (Kv * z ** (-ctrl.position_delay) * g_v + ff) / (1.0 + L)

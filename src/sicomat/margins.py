@@ -24,9 +24,13 @@ Conventions (one place; also in the docstrings below)
   For a sampled loop it is also given in sample periods.
 * **Modulus margin**: ``min |1 + L| = 1/max|S|`` over the grid (refined between the grid points
   next to the minimum with the local cubics of Re L and Im L) and the frequency where it occurs.
-* **Bandwidth**: the first frequency where ``|T|`` drops below ``|T(ω_min)|/√2`` (−3.01 dB relative to
-  the value at the lowest grid frequency, which is the static value for loops with integrators);
-  ``inf`` when ``|T|`` stays above it over the whole grid, ``nan`` when ``T(ω_min) = 0``.
+* **Bandwidth** (:func:`closed_loop_bandwidth`, the one definition used by ``margins``, ``bode`` and
+  ``tune``): the first frequency where ``|T|`` falls below ``|T(0)|/√2`` (3.0103 dB below the exact
+  static gain); ``inf`` when ``|T|`` stays above that level over the whole grid, ``nan`` when it is
+  already below at the lowest grid frequency or when ``T(0)`` is 0 or infinite. The static gain is
+  exact when known: given to :func:`stability_margins`, or carried by the loop gain in
+  ``frf.info["closed_loop_static_gain"]`` (every loop gain of :mod:`sicomat.looptf` does); a bare
+  grid response falls back to ``|T(ω_min)|`` (``static_gain_exact`` is then false).
 * A **sampled loop** (``sample_period`` set) has a real response at the Nyquist frequency ``π/T``:
   when the grid ends near it (≥ 0.95 π/T) and the phase extrapolated to ``π/T`` is an odd multiple of
   180° (within 15°), a phase crossover at ``π/T`` is added (the Nyquist plot closes on the negative
@@ -50,7 +54,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import pandas
     from matplotlib.figure import Figure
 
-__all__ = ["Margins", "stability_margins", "closed_loop", "sensitivity"]
+__all__ = ["Margins", "stability_margins", "closed_loop", "sensitivity", "closed_loop_bandwidth"]
 
 _MINUS_3DB = 20.0 * np.log10(np.sqrt(0.5))     # −3.0103 dB
 _NYQUIST_REACH = 0.95                          # grid must end above this fraction of π/T
@@ -82,7 +86,8 @@ class Margins:
     modulus_margin_rad_s : float
         Where it occurs (rad/s).
     bandwidth_rad_s : float
-        −3 dB bandwidth of ``T = L/(1+L)`` relative to ``|T(ω_min)|`` (rad/s); ``inf`` if not reached.
+        −3 dB bandwidth of ``T = L/(1+L)`` relative to its static gain (rad/s), see
+        :func:`closed_loop_bandwidth`; ``inf`` if not reached on the grid.
     gain_crossovers : ndarray, shape (n_g,)
         All gain crossovers (rad/s), ascending.
     phase_crossovers : ndarray, shape (n_p,)
@@ -97,6 +102,11 @@ class Margins:
         The loop's period (s) for a sampled loop.
     frf : FrequencyResponse
         The loop gain the margins were computed from (for :meth:`plot`).
+    closed_loop_static_gain : float
+        ``|T(0)|``, the reference of the bandwidth.
+    static_gain_exact : bool
+        True when that is the exact static gain (given or carried by ``frf.info``); False when it
+        is ``|T(ω_min)|`` at the lowest grid frequency of a bare response.
     """
 
     gain_margin_db: float
@@ -115,6 +125,8 @@ class Margins:
     delay_margins_s: np.ndarray
     sample_period: float | None
     frf: FrequencyResponse
+    closed_loop_static_gain: float = float("nan")
+    static_gain_exact: bool = False
 
     @property
     def name(self) -> str:
@@ -151,9 +163,9 @@ class Margins:
         """JSON-ready mapping; ``inf`` and ``nan`` (no such crossover, not defined) become ``None``."""
         scalars = ("gain_margin_db", "phase_margin_deg", "gain_crossover_rad_s", "phase_crossover_rad_s",
                    "delay_margin_s", "delay_margin_samples", "modulus_margin", "modulus_margin_rad_s",
-                   "bandwidth_rad_s")
+                   "bandwidth_rad_s", "closed_loop_static_gain")
         out: dict[str, Any] = {"name": self.name, "sample_period": self.sample_period,
-                               "stable_hint": self.stable_hint}
+                               "stable_hint": self.stable_hint, "static_gain_exact": self.static_gain_exact}
         out.update({key: _json_float(getattr(self, key)) for key in scalars})
         for key in ("gain_crossovers", "phase_crossovers", "phase_margins_deg", "gain_margins_db",
                     "delay_margins_s"):
@@ -194,7 +206,7 @@ class Margins:
         raise ModelError(f"unknown plot kind {kind!r}; expected 'bode' or 'nichols'")
 
 
-def stability_margins(frf: FrequencyResponse) -> Margins:
+def stability_margins(frf: FrequencyResponse, *, closed_loop_static_gain: float | None = None) -> Margins:
     """Gain, phase, delay and modulus margins of a negative-feedback loop gain ``L`` on a grid.
 
     Parameters
@@ -203,6 +215,10 @@ def stability_margins(frf: FrequencyResponse) -> Margins:
         The loop gain ``L(jω)`` (or ``L(e^{jωT})`` for a sampled loop, ``sample_period`` set) on an
         ascending grid of at least two positive frequencies (rad/s). It is taken as a loop gain
         whatever its ``open_loop`` flag.
+    closed_loop_static_gain : float, optional
+        The exact ``T(0)`` of ``T = L/(1+L)`` (1 for a loop with an integrator), the reference of
+        the bandwidth. Default: ``frf.info["closed_loop_static_gain"]`` (set by
+        :meth:`sicomat.looptf.LoopAnalysis.response`), else ``|T|`` at the lowest grid frequency.
 
     Returns
     -------
@@ -275,7 +291,12 @@ def stability_margins(frf: FrequencyResponse) -> Margins:
         gm_rep, wp_rep = np.inf, np.nan
 
     mm, w_mm = _modulus_margin(x, omega, resp, nyquist)
-    bandwidth = _bandwidth(x, resp)
+    T = closed_loop(frf)
+    if closed_loop_static_gain is None:
+        closed_loop_static_gain = frf.info.get("closed_loop_static_gain")
+    exact = closed_loop_static_gain is not None
+    static = abs(complex(closed_loop_static_gain)) if exact else float(np.abs(T.response[0]))
+    bandwidth = closed_loop_bandwidth(T, static)
     return Margins(
         gain_margin_db=gm_rep, phase_margin_deg=pm_worst,
         gain_crossover_rad_s=wg_worst, phase_crossover_rad_s=wp_rep,
@@ -283,7 +304,62 @@ def stability_margins(frf: FrequencyResponse) -> Margins:
         delay_margin_samples=dm_min / period if period else np.nan,
         modulus_margin=mm, modulus_margin_rad_s=w_mm, bandwidth_rad_s=bandwidth,
         gain_crossovers=_frozen(wg), phase_crossovers=_frozen(wp), phase_margins_deg=_frozen(pm),
-        gain_margins_db=_frozen(gm), delay_margins_s=_frozen(dm), sample_period=period, frf=frf)
+        gain_margins_db=_frozen(gm), delay_margins_s=_frozen(dm), sample_period=period, frf=frf,
+        closed_loop_static_gain=static, static_gain_exact=exact)
+
+
+def closed_loop_bandwidth(frf: FrequencyResponse, static_gain: float) -> float:
+    """The −3 dB bandwidth (rad/s) of a closed loop ``T`` known on a grid, relative to its exact
+    static gain: the one definition behind ``margins``, ``bode`` and ``tune``.
+
+    Definition: the **first** frequency where ``|T(jω)|`` falls below ``|T(0)|/√2``, i.e. 3.0103 dB
+    below the static gain (a resonance peak above the static gain before it does not matter; a
+    later dip after a first crossing neither). Located on the first grid interval where
+    ``20 log10|T|`` goes from at or above that level to below it, by interpolation in ``ln ω``: the
+    linear estimate, refined by the root of the local cubic through the four nearest grid points
+    when that root lies in the interval (the crossovers' rule, see the module docstring). The error
+    of that cubic is ``O(h⁴)`` in the grid step ``h`` of ``ln ω``.
+
+    Parameters
+    ----------
+    frf : FrequencyResponse
+        The closed loop ``T`` (e.g. :func:`closed_loop` of a loop gain) on an ascending grid of
+        positive frequencies, at least two points.
+    static_gain : float
+        ``T(0)``, exactly (see :meth:`sicomat.looptf.LoopAnalysis.closed_loop_static_gain`); only
+        its modulus is used.
+
+    Returns
+    -------
+    float
+        The bandwidth (rad/s); ``inf`` when ``|T|`` stays at or above the level over the whole grid;
+        ``nan`` when it is already below at the lowest grid frequency (the crossing lies below
+        the grid) or when the static gain is 0 or not finite.
+
+    Examples
+    --------
+    ``T = 10/(s + 10)``: ``|T(0)| = 1``, −3 dB at 10 rad/s:
+
+    >>> import numpy as np
+    >>> w = np.logspace(-1, 3, 400)
+    >>> round(closed_loop_bandwidth(FrequencyResponse(w, 10 / (1j * w + 10)), 1.0), 6)
+    10.0
+    """
+    omega, resp = _validated(frf, finite=False)
+    static = abs(complex(static_gain))
+    if not np.isfinite(static) or static == 0.0:
+        return np.nan
+    with np.errstate(divide="ignore"):
+        t_db = 20.0 * np.log10(np.abs(resp))
+    level = 20.0 * np.log10(static) + _MINUS_3DB
+    if t_db[0] < level:
+        return np.nan
+    idx, t = _crossings(t_db, np.full(t_db.size - 1, level))
+    down = t_db[idx] >= level
+    idx, t = idx[down], t[down]
+    if not idx.size:
+        return np.inf
+    return float(np.exp(_root(np.log(omega), t_db, int(idx[0]), float(t[0]), level)))
 
 
 def closed_loop(frf: FrequencyResponse) -> FrequencyResponse:
@@ -342,7 +418,9 @@ def _derived_name(name: str, what: str) -> str:
     return f"{name} {what}" if name else what
 
 
-def _validated(frf: FrequencyResponse) -> tuple[np.ndarray, np.ndarray]:
+def _validated(frf: FrequencyResponse, *, finite: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The grid and the response, checked; ``finite=False`` lets infinite values through (a closed
+    loop at a grid point where ``1 + L = 0``), not NaN."""
     omega = np.asarray(frf.omega, dtype=float)
     resp = np.asarray(frf.response, dtype=complex)
     if omega.ndim != 1 or omega.size < 2:
@@ -354,7 +432,7 @@ def _validated(frf: FrequencyResponse) -> tuple[np.ndarray, np.ndarray]:
     if not np.all(np.isfinite(omega)) or omega[0] <= 0 or np.any(np.diff(omega) <= 0):
         raise ModelError("frequencies must be finite, positive and strictly ascending (rad/s)",
                          path="frf.omega")
-    bad = np.flatnonzero(~np.isfinite(resp))
+    bad = np.flatnonzero(~np.isfinite(resp) if finite else np.isnan(resp))
     if bad.size:
         raise ModelError(f"the response is not finite at ω = {omega[bad[0]]:.6g} rad/s "
                          f"({bad.size} point(s)); remove the grid points on poles", path="frf.response")
@@ -496,20 +574,6 @@ def _modulus_margin(x: np.ndarray, omega: np.ndarray, resp: np.ndarray,
         if 0.0 <= at_nyquist < best:
             best, where = at_nyquist, nyquist
     return best, where
-
-
-def _bandwidth(x: np.ndarray, resp: np.ndarray) -> float:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_db = 20.0 * np.log10(np.abs(resp / (1.0 + resp)))
-    if not np.isfinite(t_db[0]):
-        return np.nan
-    level = t_db[0] + _MINUS_3DB
-    idx, t = _crossings(t_db, np.full(t_db.size - 1, level))
-    down = t_db[idx] >= level
-    idx, t = idx[down], t[down]
-    if not idx.size:
-        return np.inf
-    return float(np.exp(_root(x, t_db, int(idx[0]), float(t[0]), level)))
 
 
 def _frozen(values: np.ndarray) -> np.ndarray:

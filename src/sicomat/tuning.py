@@ -300,6 +300,17 @@ class _Evaluator:
         self.count += 1
         return _quick_margins(self.omega_p, kv * base)
 
+    def bandwidth(self, which: str, L: np.ndarray, kp: float, ti: float, kv: float) -> float | None:
+        """The closed loop's −3 dB bandwidth (rad/s) by :func:`sicomat.margins.closed_loop_bandwidth`
+        relative to its exact static gain, as ``sicomat margins`` reports it; ``None`` when not
+        reached on the grid (or undefined)."""
+        from .frequency import FrequencyResponse
+        from .margins import closed_loop, closed_loop_bandwidth
+
+        omega = self.omega_v if which == "velocity-open" else self.omega_p
+        T = closed_loop(FrequencyResponse(omega, L, which, open_loop=True))
+        return _finite(closed_loop_bandwidth(T, self.an.closed_loop_static_gain(which, kp, ti, kv)))
+
 
 def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, suggest_notch: bool = True) -> TuningResult:
     """Two-step automatic tuning (rigid closed form, then Nelder–Mead on the complete model).
@@ -383,8 +394,8 @@ def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: flo
     achieved = Achieved(qv.phase_margin, qv.crossover, qv.gain_margin, qp.phase_margin, qp.crossover,
                         qp.gain_margin, velocity_worst_phase_margin_deg=qv.worst_phase_margin,
                         velocity_crossovers=qv.n_crossovers,
-                        velocity_bandwidth_rad_s=_bandwidth(ev.omega_v, ev.velocity_gain(kp, ti)),
-                        position_bandwidth_rad_s=_bandwidth(ev.omega_p, kv * base),
+                        velocity_bandwidth_rad_s=ev.bandwidth("velocity-open", ev.velocity_gain(kp, ti), kp, ti, kv),
+                        position_bandwidth_rad_s=ev.bandwidth("position-open", kv * base, kp, ti, kv),
                         position_worst_phase_margin_deg=qp.worst_phase_margin)
     from .stability import loop_verdict
 
@@ -394,13 +405,6 @@ def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: flo
                         equivalent_delay_s=tau, achieved=achieved, targets_met=not unmet, unmet=tuple(unmet),
                         evaluations=ev.count, wall_time_s=time.perf_counter() - start,
                         stable=verdict.stable, stability_warnings=verdict.warnings)
-
-
-def _bandwidth(omega: np.ndarray, L: np.ndarray) -> float | None:
-    """−3 dB bandwidth of the closed loop L/(1+L), relative to its low-frequency value."""
-    T = np.abs(L / (1.0 + L))
-    below = np.flatnonzero(T < T[0] / np.sqrt(2.0))
-    return float(omega[below[0]]) if below.size else None
 
 
 def _tune_position(ev: _Evaluator, base: np.ndarray, kv0: float, t: TuningTargets) -> float:

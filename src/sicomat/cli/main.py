@@ -339,12 +339,18 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
            method: str = typer.Option("modal", "--method",
                                       help="modal | balanced | balanced-dc | schur | hankel | physical"),
            order: Optional[int] = typer.Option(None, "--order", help="States of the reduced model "
-                                               "(a rigid mode and one flexible mode make 4)."),
+                                               "(a rigid mode and one flexible mode make 4); default: the "
+                                               "modes up to twice the velocity loop's Nyquist frequency."),
            keep: Optional[str] = typer.Option(None, "--keep", metavar="DOF,...",
                                               help="Bodies kept by the physical method."),
            band: Optional[str] = typer.Option(None, "--band", metavar="LOW_HZ:HIGH_HZ",
                                               help="Band of interest (errors, frequency-limited Gramians, "
                                                    "stiff-spring rule)."),
+           inputs: Optional[str] = typer.Option(None, "--inputs", metavar="NAME[,NAME]",
+                                                help="Actuators of the transfer to reduce; default: the drive's."),
+           outputs: Optional[str] = typer.Option(None, "--outputs", metavar="NAME[,NAME]",
+                                                 help="Sensors of the transfer to reduce; default: the "
+                                                      "controller's position sensor."),
            write: Optional[Path] = typer.Option(None, "--write", metavar="REDUCED.toml", dir_okay=False,
                                                 help="Write the reduced model (physical method)."),
            set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
@@ -362,7 +368,7 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
         check_outputs({"--write": (write, "model"), "--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
-        result = reduce_command(machine, axis, method, order, keep, band)
+        result = reduce_command(machine, axis, method, order, keep, band, inputs, outputs)
         if write is not None:
             from ..reduction.cli_support import write_reduced
 

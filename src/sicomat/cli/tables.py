@@ -252,6 +252,13 @@ def print_reduction(payload: dict[str, Any]) -> None:
 
     console = Console(highlight=False)
     console.print(f"[bold]{payload['method']}[/]: {payload['order_before']} → {payload['order_after']} states")
+    console.print(f"  transfer: {', '.join(payload['inputs'])} → {', '.join(payload['outputs'])}")
+    for warning in payload.get("warnings") or []:
+        console.print(f"  [bold yellow]warning:[/] {warning}")
+    for note in payload.get("notes") or []:
+        console.print(f"  note: {note}")
+    if payload.get("band_hz"):
+        console.print(f"  band of interest: {payload['band_hz'][0]:.6g}-{payload['band_hz'][1]:.6g} Hz")
     for key in ("hinf_error", "dc_gain_error", "error_bound"):
         if payload.get(key) is not None:
             console.print(f"  {key}: {payload[key]:.4g}")

@@ -25,7 +25,7 @@ product.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 import scipy.linalg
@@ -33,8 +33,8 @@ from scipy.linalg import lapack
 
 from ..errors import AnalysisError, ModelError
 from ..plant import Plant
-from .modal import (RIGID_TOL, SpectralSplit, StateBlock, check_order, schur_triplet, select_positions,
-                    spectral_split, split_block)
+from .modal import (RIGID_TOL, SpectralSplit, StateBlock, check_order, schur_eigenvalues, schur_triplet,
+                    select_positions, spectral_split, split_block)
 
 if TYPE_CHECKING:  # pragma: no cover
     from .error import ReductionResult
@@ -115,8 +115,10 @@ def _reliable(hsv: np.ndarray) -> int:
     return int(np.sum(hsv > hsv[0] * np.sqrt(np.finfo(float).eps)))
 
 
-def hankel_singular_values(plant: Plant, *, rigid_tol: float = RIGID_TOL) -> np.ndarray:
-    """Hankel singular values of the stable part of a plant, descending.
+def hankel_singular_values(plant: Plant, *, rigid_tol: float = RIGID_TOL, inputs: Sequence[str] | None = None,
+                           outputs: Sequence[str] | None = None) -> np.ndarray:
+    """Hankel singular values of the stable part of a plant (or of its transfer from ``inputs`` to
+    ``outputs``, see :func:`~sicomat.reduction.error.select_transfer`), descending.
 
     The poles at 0 and on the imaginary axis (rigid-body and undamped modes) are split off first:
     their Hankel singular values would be infinite.
@@ -128,7 +130,9 @@ def hankel_singular_values(plant: Plant, *, rigid_tol: float = RIGID_TOL) -> np.
     >>> hankel_singular_values(G).round(12).tolist()
     [0.5]
     """
-    _, gram = _stable_part(plant, rigid_tol)
+    from .error import select_transfer
+
+    _, gram = _stable_part(select_transfer(plant, inputs, outputs), rigid_tol)
     return _square_root(*gram.gramians())[3]
 
 
@@ -362,24 +366,43 @@ def _assemble(plant: Plant, split: SpectralSplit, reduced: StateBlock, D: np.nda
                  np.hstack([first.C, reduced.C]), D, tuple(names), plant.inputs, plant.outputs)
 
 
-def _prepare(plant: Plant, order: int, rigid_tol: float):
+def _prepare(plant: Plant, order: int, rigid_tol: float, inputs, outputs):
+    """``(plant, split, gramians)``: the chosen transfer, its exact part split off, the order checked."""
+    from .error import select_transfer
+
+    plant = select_transfer(plant, inputs, outputs)
     split, gram = _stable_part(plant, rigid_tol)
     check_order(order, plant.n_states, split.rigid.n, what=_EXACT_PART)
-    return split, gram
+    return plant, split, gram
 
 
-def _cap(r: int, available: int, notes: list[str], split: SpectralSplit) -> int:
+def _cap(r: int, available: int, warnings: list[str], split: SpectralSplit) -> int:
     if r > available:
-        notes.append(f"the stable part has only {available} Hankel singular values above round-off; "
-                     f"the reduced model has {split.rigid.n + available} states")
+        warnings.append(f"the stable part has only {available} Hankel singular values above round-off; "
+                        f"the reduced model has {split.rigid.n + available} states")
         return available
+    return r
+
+
+def _whole_pairs(r: int, order: int, split: SpectralSplit, warnings: list[str]) -> int:
+    """``r`` unchanged; a warning when ``r`` is odd and every stable pole is complex (the lightly
+    damped modes of a mechanics): the approximant then has a real pole that is no mode of the full
+    model (on the 5M4S at order 5, 0.18 Hz). The approximation stays valid (error bound, Glover's
+    optimality), so the order is kept, not rounded as modal truncation does."""
+    stable = split.flexible
+    if r % 2 and stable.n and not np.any(schur_eigenvalues(stable.A).imag == 0):
+        total = split.rigid.n + r
+        warnings.append(f"order {order}: every pole of the stable part is complex, so an odd number of "
+                        f"states ({total}) gives the reduced model a real pole that is no mode of the full "
+                        f"model; orders {total - 1} or {total + 1} keep whole modes")
     return r
 
 
 # --------------------------------------------------------------------------- public reductors
 def balanced_truncation(plant: Plant, order: int, *, match_dc: bool = False,
                         band_hz: tuple[float, float] | None = None,
-                        rigid_tol: float = RIGID_TOL) -> "ReductionResult":
+                        rigid_tol: float = RIGID_TOL,
+                        inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None) -> "ReductionResult":
     """Square-root balanced truncation (or singular-perturbation approximation) of the stable part.
 
     Parameters
@@ -396,11 +419,17 @@ def balanced_truncation(plant: Plant, order: int, *, match_dc: bool = False,
         :func:`frequency_limited_truncation` to reduce for a band).
     rigid_tol : float, optional
         Relative tolerance for poles at 0 (see :data:`~sicomat.reduction.modal.RIGID_TOL`).
+    inputs, outputs : sequence of str, optional
+        The transfer to reduce (:func:`~sicomat.reduction.error.select_transfer`); all the plant's
+        signals by default. The Gramians weigh the channels in their SI units: choose the transfer
+        that matters (the actuator to the position sensor), not a mix of m and m/s outputs.
 
     Returns
     -------
     ReductionResult
-        With ``hankel_singular_values`` and ``error_bound = 2 Σ_{i>r} σ_i``.
+        With ``hankel_singular_values`` and ``error_bound = 2 Σ_{i>r} σ_i``. An odd number of
+        stable states when every stable pole is complex gives a real pole that is no mode of the
+        full model: kept (the bound holds), and ``warnings`` says so.
 
     Examples
     --------
@@ -415,11 +444,13 @@ def balanced_truncation(plant: Plant, order: int, *, match_dc: bool = False,
     from .error import ReductionResult, check_band
 
     band_hz = check_band(band_hz)
-    split, gram = _prepare(plant, order, rigid_tol)
+    plant, split, gram = _prepare(plant, order, rigid_tol, inputs, outputs)
     notes: list[str] = []
+    warnings: list[str] = []
     stable = split.flexible
     Lp, Lq, U, hsv, Vt = _square_root(*gram.gramians())
-    r = _cap(order - split.rigid.n, _reliable(hsv) if match_dc else _minimal(hsv), notes, split)
+    r = _whole_pairs(_cap(order - split.rigid.n, _reliable(hsv) if match_dc else _minimal(hsv), warnings, split),
+                     order, split, warnings)
     if match_dc:
         bal = _balanced_realization(stable, Lp, Lq, U, hsv, Vt)
         red, D = _residualize(bal, split.D, r)
@@ -434,25 +465,28 @@ def balanced_truncation(plant: Plant, order: int, *, match_dc: bool = False,
     reduced = _assemble(plant, split, red, D, "balanced")
     return ReductionResult(method="balanced", variant=variant, full=plant, reduced=reduced,
                            hankel_singular_values=hsv, error_bound=float(2.0 * np.sum(hsv[r:])),
-                           band_hz=band_hz, notes=tuple(notes), rigid_tol=rigid_tol)
+                           band_hz=band_hz, notes=tuple(notes), warnings=tuple(warnings), rigid_tol=rigid_tol)
 
 
 def schur_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] | None = None,
-                     rigid_tol: float = RIGID_TOL) -> "ReductionResult":
+                     rigid_tol: float = RIGID_TOL,
+                     inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None) -> "ReductionResult":
     """The Schur method (balancing-free square root, Safonov–Chiang 1989, Varga 1991).
 
     Projects on orthonormal bases of the dominant controllable and observable subspaces instead of
     balancing: the reduced transfer function is that of :func:`balanced_truncation`, its
-    coordinates are better conditioned. Same error bound ``2 Σ_{i>r} σ_i``.
+    coordinates are better conditioned. Same error bound ``2 Σ_{i>r} σ_i``, same ``order``,
+    ``inputs`` and ``outputs`` rules.
     """
     from .error import ReductionResult, check_band
 
     band_hz = check_band(band_hz)
-    split, gram = _prepare(plant, order, rigid_tol)
+    plant, split, gram = _prepare(plant, order, rigid_tol, inputs, outputs)
     notes: list[str] = []
+    warnings: list[str] = []
     stable = split.flexible
     Lp, Lq, U, hsv, Vt = _square_root(*gram.gramians())
-    r = _cap(order - split.rigid.n, _minimal(hsv), notes, split)
+    r = _whole_pairs(_cap(order - split.rigid.n, _minimal(hsv), warnings, split), order, split, warnings)
     Q1 = np.linalg.qr(Lp @ Vt[:r].T)[0]
     Q2 = np.linalg.qr(Lq @ U[:, :r])[0]
     E = Q2.T @ Q1
@@ -461,11 +495,13 @@ def schur_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] |
     reduced = _assemble(plant, split, red, split.D, "schur")
     return ReductionResult(method="balanced", variant="schur", full=plant, reduced=reduced,
                            hankel_singular_values=hsv, error_bound=float(2.0 * np.sum(hsv[r:])),
-                           band_hz=band_hz, notes=tuple(notes), rigid_tol=rigid_tol)
+                           band_hz=band_hz, notes=tuple(notes), warnings=tuple(warnings), rigid_tol=rigid_tol)
 
 
 def frequency_limited_truncation(plant: Plant, order: int, band_hz: tuple[float, float], *,
-                                 rigid_tol: float = RIGID_TOL) -> "ReductionResult":
+                                 rigid_tol: float = RIGID_TOL,
+                                 inputs: Sequence[str] | None = None,
+                                 outputs: Sequence[str] | None = None) -> "ReductionResult":
     """Balanced truncation with frequency-limited ("partial") Gramians over a band (Gawronski–Juang).
 
     The Gramians only integrate the band ``[ω₁, ω₂]`` (and its mirror image), so the reduced model
@@ -484,6 +520,8 @@ def frequency_limited_truncation(plant: Plant, order: int, band_hz: tuple[float,
         The band of interest ``(low_hz, high_hz)``, ``0 ≤ low < high``.
     rigid_tol : float, optional
         Relative tolerance for poles at 0.
+    inputs, outputs : sequence of str, optional
+        The transfer to reduce, as for :func:`balanced_truncation`.
 
     Returns
     -------
@@ -495,13 +533,14 @@ def frequency_limited_truncation(plant: Plant, order: int, band_hz: tuple[float,
     band_hz = check_band(band_hz)
     if band_hz is None:
         raise ModelError("frequency-limited truncation needs a band (low_hz, high_hz)", path="band_hz")
-    split, gram = _prepare(plant, order, rigid_tol)
+    plant, split, gram = _prepare(plant, order, rigid_tol, inputs, outputs)
     notes: list[str] = []
+    warnings: list[str] = []
     stable = split.flexible
     band_omega = (2 * np.pi * band_hz[0], 2 * np.pi * band_hz[1])
     variant = "frequency-limited"
     Lp, Lq, U, hsv, Vt = _square_root(*gram.gramians(band_omega))
-    r = _cap(order - split.rigid.n, _minimal(hsv), notes, split)
+    r = _whole_pairs(_cap(order - split.rigid.n, _minimal(hsv), warnings, split), order, split, warnings)
     red = _truncate(stable, Lp, Lq, U, hsv, Vt, r)
     if red.n and np.any(np.linalg.eigvals(red.A).real >= 0):
         Lp, Lq, U, hsv, Vt = _square_root(*gram.stabilised_band_gramians(band_omega))
@@ -513,16 +552,19 @@ def frequency_limited_truncation(plant: Plant, order: int, band_hz: tuple[float,
     reduced = _assemble(plant, split, red, split.D, "balanced")
     return ReductionResult(method="balanced", variant=variant, full=plant, reduced=reduced,
                            hankel_singular_values=hsv, error_bound=None, band_hz=band_hz,
-                           notes=tuple(notes), rigid_tol=rigid_tol)
+                           notes=tuple(notes), warnings=tuple(warnings), rigid_tol=rigid_tol)
 
 
 def hankel_norm_approximation(plant: Plant, order: int, *, band_hz: tuple[float, float] | None = None,
-                              rigid_tol: float = RIGID_TOL) -> "ReductionResult":
+                              rigid_tol: float = RIGID_TOL,
+                              inputs: Sequence[str] | None = None,
+                              outputs: Sequence[str] | None = None) -> "ReductionResult":
     """Glover's optimal Hankel-norm approximation of the stable part (scipy only).
 
     From a balanced realization of the stable part, Glover's all-pass dilation (K. Glover, Int. J.
     Control 39(6), 1984) gives a system ``Ĝ`` with ``‖G − Ĝ‖∞ = σ_{r+1}``; its stable part is the
-    reduced model. Non-square plants are squared up with zero columns or rows first.
+    reduced model. Non-square plants are squared up with zero columns or rows first. ``order``,
+    ``inputs`` and ``outputs`` as for :func:`balanced_truncation`.
 
     Returns
     -------
@@ -534,24 +576,25 @@ def hankel_norm_approximation(plant: Plant, order: int, *, band_hz: tuple[float,
     from .error import ReductionResult, check_band
 
     band_hz = check_band(band_hz)
-    split, gram = _prepare(plant, order, rigid_tol)
+    plant, split, gram = _prepare(plant, order, rigid_tol, inputs, outputs)
     notes: list[str] = []
+    warnings: list[str] = []
     stable = split.flexible
     Lp, Lq, U, hsv, Vt = _square_root(*gram.gramians())
     n_min = _reliable(hsv)
-    k = _cap(order - split.rigid.n, n_min, notes, split)
+    k = _whole_pairs(_cap(order - split.rigid.n, n_min, warnings, split), order, split, warnings)
     bal = _balanced_realization(stable, Lp, Lq, U, hsv, Vt)
     D = np.array(split.D, dtype=float)
     if k >= n_min:
         reduced = _assemble(plant, split, bal, D, "hankel")
         return ReductionResult(method="balanced", variant="hankel-norm", full=plant, reduced=reduced,
                                hankel_singular_values=hsv, error_bound=float(np.sum(hsv[n_min:])),
-                               band_hz=band_hz, notes=tuple(notes), rigid_tol=rigid_tol)
+                               band_hz=band_hz, notes=tuple(notes), warnings=tuple(warnings), rigid_tol=rigid_tol)
     sigma = hsv[:n_min]
     s = float(sigma[k])
     group = np.flatnonzero(np.abs(sigma - s) <= 1e-9 * sigma[0])
     if group[0] < k:
-        notes.append(f"σ_{k + 1} is repeated; the reduced model keeps {group[0]} stable states")
+        warnings.append(f"σ_{k + 1} is repeated; the reduced model keeps {group[0]} stable states")
         k = int(group[0])
     rest = np.setdiff1d(np.arange(n_min), group)
     ny, nu = D.shape
@@ -576,9 +619,9 @@ def hankel_norm_approximation(plant: Plant, order: int, *, band_hz: tuple[float,
     stable_part, _ = split_block(StateBlock(T, Bt, Ct), select_positions(T, lambda v: v.real < 0))
     red = StateBlock(stable_part.A, stable_part.B[:, :nu], stable_part.C[:ny])
     if red.n != k:
-        notes.append(f"the stable part of the Hankel-norm approximant has {red.n} states instead of {k}")
+        warnings.append(f"the stable part of the Hankel-norm approximant has {red.n} states instead of {k}")
     bound = s + 2.0 * float(np.sum(hsv[group[-1] + 1:]))
     reduced = _assemble(plant, split, red, Dh[:ny, :nu], "hankel")
     return ReductionResult(method="balanced", variant="hankel-norm", full=plant, reduced=reduced,
                            hankel_singular_values=hsv, error_bound=bound, band_hz=band_hz,
-                           notes=tuple(notes), rigid_tol=rigid_tol)
+                           notes=tuple(notes), warnings=tuple(warnings), rigid_tol=rigid_tol)

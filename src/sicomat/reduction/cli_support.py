@@ -15,14 +15,16 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..model import Axis, Machine
     from .error import ReductionResult
 
-__all__ = ["reduce_command", "write_reduced", "parse_band", "parse_keep", "METHODS"]
+__all__ = ["reduce_command", "write_reduced", "parse_band", "parse_keep", "parse_signals", "default_transfer",
+           "default_band", "METHODS"]
 
 METHODS = ("modal", "balanced", "balanced-dc", "schur", "hankel", "physical")
 """Accepted ``--method`` values. ``balanced`` uses the frequency-limited ("partial") Gramians when a
 band is given, ``balanced-dc`` is the singular-perturbation variant (keeps the static gain),
 ``schur`` the balancing-free Schur method, ``hankel`` the optimal Hankel-norm approximation."""
 
-_OPTION = {"order": "--order", "keep": "--keep", "band_hz": "--band", "method": "--method"}
+_OPTION = {"order": "--order", "keep": "--keep", "band_hz": "--band", "method": "--method",
+           "inputs": "--inputs", "outputs": "--outputs"}
 
 
 def parse_band(band: str | Sequence[float] | None) -> tuple[float, float] | None:
@@ -64,6 +66,60 @@ def parse_keep(keep: str | Sequence[str] | None) -> list[str] | None:
     return names
 
 
+def parse_signals(names: str | Sequence[str] | None, option: str) -> list[str] | None:
+    """``"a,b"`` (or a list of names, each possibly comma-separated) as a list of signal names."""
+    if names is None:
+        return None
+    items = [names] if isinstance(names, str) else list(names)
+    parts = [part.strip() for item in items for part in str(item).split(",")]
+    parts = [p for p in parts if p]
+    if not parts:
+        raise ModelError("expected signal names separated by commas", source=option,
+                         value=",".join(str(i) for i in items))
+    return parts
+
+
+def default_transfer(axis: "Axis") -> tuple[list[str], list[str], str]:
+    """The transfer ``sicomat reduce`` reduces when none is chosen: ``(inputs, outputs, why)``.
+
+    The one the loops close around: the drive's actuator (``drive.actuator``, or the mechanics'
+    only one, as :func:`sicomat.loop.build_servo_loop` chooses it) to the controller's position
+    sensor. Without a controller: the driven actuator (every actuator without a drive) to every
+    position sensor (every sensor if there is none), so that metres are never mixed with m/s.
+    """
+    lumped = axis.mechanics.to_lumped()
+    actuators, sensors = list(lumped.actuators), lumped.sensors
+    if axis.drive is not None and actuators:
+        inputs = [axis.drive.actuator or actuators[0]]
+    else:
+        inputs = actuators
+    if axis.controller is not None:
+        return inputs, [axis.controller.position_sensor], "the drive's actuator to the controller's position sensor"
+    position = [name for name, sensor in sensors.items() if sensor.kind == "position"]
+    outputs = position or list(sensors)
+    what = "position sensors" if position else "sensors"
+    return inputs, outputs, f"the {'drive' if axis.drive is not None else 'actuators'} to the {what} (no controller)"
+
+
+def default_band(axis: "Axis") -> tuple[tuple[float, float] | None, str]:
+    """The band of interest of ``sicomat reduce MODEL`` without ``--order``, ``--band`` or ``--keep``.
+
+    0 Hz to the Nyquist frequency ``1/(2 Tv)`` of a sampled velocity loop: the controller acts up to
+    it, and every mode below twice it (the ``--band`` rule), aliased or not, is one the loop can
+    meet. Without a sampled velocity loop: 0 to 10 ``f_meca`` (the first flexible mode the
+    actuator and sensors see). ``None`` for a rigid mechanics (nothing to remove).
+    """
+    from ..mechanics import build_mechanics
+
+    ctrl = axis.controller
+    if ctrl is not None and ctrl.velocity_loop == "discrete":
+        return (0.0, 0.5 / ctrl.velocity_period), "the velocity loop's Nyquist frequency"
+    f_meca = build_mechanics(axis.mechanics).modes().f_meca_hz
+    if f_meca is None:
+        return None, "a rigid mechanics"
+    return (0.0, 10.0 * f_meca), "10 × f_meca"
+
+
 def _as_option(exc: ModelError, option: str) -> ModelError:
     return ModelError(exc.message, source=option, value=exc.value, has_value=exc.has_value)
 
@@ -88,7 +144,9 @@ def _order_for_band(plant, band_hz: tuple[float, float]) -> int:
 
 
 def reduce_command(machine: "Machine", axis: str | None, method: str, order: int | None,
-                   keep: str | Sequence[str] | None, band: str | Sequence[float] | None) -> "ReductionResult":
+                   keep: str | Sequence[str] | None, band: str | Sequence[float] | None,
+                   inputs: str | Sequence[str] | None = None,
+                   outputs: str | Sequence[str] | None = None) -> "ReductionResult":
     """Reduce one axis of a machine, as ``sicomat reduce`` does.
 
     Parameters
@@ -101,12 +159,19 @@ def reduce_command(machine: "Machine", axis: str | None, method: str, order: int
         One of :data:`METHODS`.
     order : int or None
         Number of states of the reduced model (two per body for ``physical``). For ``modal`` and
-        the balanced methods without an order, a band keeps the modes up to twice its upper limit.
+        the balanced methods without an order, a band keeps the modes up to twice its upper limit;
+        without either, the band is :func:`default_band` (used for the order and the reported
+        band errors only: ``balanced`` keeps the ordinary Gramians). An order that would split a
+        complex pole pair is rounded down, with a ``warnings`` entry.
     keep : str, sequence of str or None
         Bodies to keep (``physical`` only); ``"a,b"`` strings are split at commas.
     band : str, (float, float) or None
         Band of interest ``"LOW_HZ:HIGH_HZ"`` or ``(low_hz, high_hz)``: band errors for every
         method, frequency-limited Gramians for ``balanced``, the stiff-spring rule for ``physical``.
+    inputs, outputs : str, sequence of str or None
+        The transfer to reduce: actuator and sensor names (``"a,b"`` strings are split at commas);
+        by default :func:`default_transfer`, the one the loops close around. The result's
+        ``inputs``/``outputs`` (and a note for the default) say which.
 
     Returns
     -------
@@ -138,28 +203,51 @@ def reduce_command(machine: "Machine", axis: str | None, method: str, order: int
                          source="--keep", value=",".join(keep_list))
     name = machine.axis_name(axis)
     ax = machine.axes[name]
+    ins, outs = parse_signals(inputs, "--inputs"), parse_signals(outputs, "--outputs")
+    notes: list[str] = []
+    if ins is None or outs is None:
+        default_ins, default_outs, why = default_transfer(ax)
+        chosen = [f"{option} {','.join(names)}" for option, given, names in
+                  (("--inputs", ins, default_ins), ("--outputs", outs, default_outs)) if given is None]
+        notes.append(f"{' '.join(chosen)} by default ({why})")
+        ins = default_ins if ins is None else ins
+        outs = default_outs if outs is None else outs
     try:
         if method == "physical":
-            result = physical_reduction(ax.mechanics, keep_list, order=order, band_hz=band_hz, tool=_tool(ax))
+            result = physical_reduction(ax.mechanics, keep_list, order=order, band_hz=band_hz, tool=_tool(ax),
+                                        inputs=ins, outputs=outs)
             return dataclasses.replace(result, machine=reduced_machine(machine, name, result.spec,
-                                                                       merged_into=result.merged_into))
+                                                                       merged_into=result.merged_into),
+                                       notes=(*notes, *result.notes))
         plant = build_mechanics(ax.mechanics).state_space()
+        gramian_band = band_hz           # a band given by the user also selects the partial Gramians
         if order is None:
             if band_hz is None:
-                raise ModelError(f"--method {method} needs --order N (or --band LOW:HIGH to keep the "
-                                 "modes up to twice the band)", source="--order")
-            order = min(_order_for_band(plant, band_hz), plant.n_states)
+                band_hz, why = default_band(ax)
+                if band_hz is None:
+                    order = plant.n_states
+                    notes.append(f"no --order or --band: {why}, every state kept")
+                else:
+                    order = min(_order_for_band(plant, band_hz), plant.n_states)
+                    notes.append(f"no --order or --band: the band of interest is 0-{band_hz[1]:.6g} Hz ({why}); "
+                                 f"the modes up to twice it are kept: {order} states")
+            else:
+                order = min(_order_for_band(plant, band_hz), plant.n_states)
+        io = {"inputs": ins, "outputs": outs}
         if method == "modal":
-            return modal_truncation(plant, order, band_hz=band_hz)
-        if method == "balanced":
-            if band_hz is not None:
-                return bal.frequency_limited_truncation(plant, order, band_hz)
-            return bal.balanced_truncation(plant, order)
-        if method == "balanced-dc":
-            return bal.balanced_truncation(plant, order, match_dc=True, band_hz=band_hz)
-        if method == "schur":
-            return bal.schur_truncation(plant, order, band_hz=band_hz)
-        return bal.hankel_norm_approximation(plant, order, band_hz=band_hz)
+            result = modal_truncation(plant, order, band_hz=band_hz, **io)
+        elif method == "balanced":
+            if gramian_band is not None:
+                result = bal.frequency_limited_truncation(plant, order, gramian_band, **io)
+            else:
+                result = bal.balanced_truncation(plant, order, band_hz=band_hz, **io)
+        elif method == "balanced-dc":
+            result = bal.balanced_truncation(plant, order, match_dc=True, band_hz=band_hz, **io)
+        elif method == "schur":
+            result = bal.schur_truncation(plant, order, band_hz=band_hz, **io)
+        else:
+            result = bal.hankel_norm_approximation(plant, order, band_hz=band_hz, **io)
+        return dataclasses.replace(result, notes=(*notes, *result.notes))
     except ModelError as exc:
         if exc.source is None and exc.path in _OPTION:
             option = _OPTION[exc.path]

@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..model import LumpedSpec, Machine
 
 __all__ = ["ErrorMetrics", "ReductionResult", "error_metrics", "frequency_grid", "frequency_response",
-           "natural_frequencies_hz", "check_band"]
+           "natural_frequencies_hz", "check_band", "select_transfer"]
 
 _TWO_PI = 2.0 * np.pi
 
@@ -48,6 +48,56 @@ def check_band(band_hz: Sequence[float] | None) -> tuple[float, float] | None:
     if low >= high:
         raise ModelError("expected a band with low < high (Hz)", path="band_hz", value=(low, high))
     return (low, high)
+
+
+def select_transfer(plant: Plant, inputs: Sequence[str] | str | None = None,
+                    outputs: Sequence[str] | str | None = None) -> Plant:
+    """The sub-plant a reduction works on: from the named inputs to the named outputs.
+
+    The Gramians and error norms weigh every channel of the plant in its raw SI units, so a
+    velocity output (m/s) next to a position output (m) dominates by the frequencies squared:
+    reduce the transfer that matters, e.g. the actuator to the controller's position sensor.
+
+    Parameters
+    ----------
+    plant : Plant
+        The full plant.
+    inputs, outputs : sequence of str, str or None
+        Signal names (a string is one name); ``None`` keeps them all.
+
+    Raises
+    ------
+    ModelError
+        An empty selection, a repeated name or an unknown one (``path`` is ``"inputs"`` or
+        ``"outputs"``; the message lists the plant's signals).
+
+    Examples
+    --------
+    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.mechanics import build_mechanics
+    >>> plant = build_mechanics(ChainSpec(type="chain", masses=[1, 1], stiffnesses=[100])).state_space()
+    >>> select_transfer(plant, outputs=["last"]).outputs
+    ('last',)
+    """
+    chosen = {}
+    for kind, names, known in (("input", inputs, plant.inputs), ("output", outputs, plant.outputs)):
+        if names is None:
+            chosen[kind] = None
+            continue
+        names = [names] if isinstance(names, str) else list(names)
+        if not names:
+            raise ModelError(f"no {kind} chosen; expected names among {', '.join(known)}", path=f"{kind}s",
+                             value="")
+        for name in names:
+            if name not in known:
+                raise ModelError(f"unknown {kind} signal; expected names among {', '.join(known)}",
+                                 path=f"{kind}s", value=name)
+        if len(set(names)) != len(names):
+            raise ModelError(f"an {kind} is named twice", path=f"{kind}s", value=",".join(names))
+        chosen[kind] = names
+    if chosen["input"] is None and chosen["output"] is None:
+        return plant
+    return plant.select(chosen["input"], chosen["output"])
 
 
 # --------------------------------------------------------------------------- frequency responses
@@ -409,7 +459,10 @@ class ReductionResult:
         The machine with the reduced axis, ready for :func:`sicomat.modelfile.save_model`
         (physical method through :func:`~sicomat.reduction.cli_support.reduce_command`).
     notes : tuple of str
-        Things the user should know (a complex pair not split, a friction dropped, ...).
+        Things the user should know (the transfer chosen by default, a friction dropped, ...).
+    warnings : tuple of str
+        What differs from the request (an order that would split a complex pole pair, rounded
+        down; fewer states than asked).
 
     The error figures (:attr:`metrics`, :attr:`hinf_error`, ...) are computed on first access.
     """
@@ -428,6 +481,7 @@ class ReductionResult:
     notes: tuple[str, ...] = ()
     merged_into: dict[str, str] = field(default_factory=dict)
     rigid_tol: float | None = field(default=None, repr=False)
+    warnings: tuple[str, ...] = ()
 
     @property
     def order_before(self) -> int:
@@ -489,6 +543,7 @@ class ReductionResult:
             "kept": list(self.kept) if self.kept else None,
             "merged_into": dict(self.merged_into) if self.merged_into else None,
             "notes": list(self.notes),
+            "warnings": list(self.warnings),
         })
         if self.spec is not None:
             out["reduced_model"] = self.spec.model_dump(mode="json", exclude_none=True)

@@ -10,7 +10,7 @@ and for the error metrics.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 import scipy.linalg
@@ -303,7 +303,8 @@ def _real_modal_form(block: StateBlock) -> tuple[StateBlock, np.ndarray]:
 
 
 def modal_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] | None = None,
-                     rigid_tol: float = RIGID_TOL) -> "ReductionResult":
+                     rigid_tol: float = RIGID_TOL, inputs: Sequence[str] | None = None,
+                     outputs: Sequence[str] | None = None) -> "ReductionResult":
     """Remove the fastest modes and keep the static gain (paper III.C.1).
 
     The modes are the eigenvalues of A, sorted by natural frequency ``|λ|``; the slowest are kept
@@ -319,11 +320,14 @@ def modal_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] |
     order : int
         Number of states of the reduced model, rigid part included (a free rigid mode and one
         flexible mode make 4). A complex pair is never split: if ``order`` falls inside one, the
-        reduced model has one state less (see ``notes``).
+        reduced model has one state less, and ``warnings`` says so.
     band_hz : (float, float), optional
         Band of interest (Hz) for the reported band errors.
     rigid_tol : float, optional
         Relative tolerance for poles at 0 (see :data:`RIGID_TOL`).
+    inputs, outputs : sequence of str, optional
+        The transfer to reduce (see :func:`~sicomat.reduction.error.select_transfer`); all the
+        plant's signals by default. The kept modes do not depend on it, the error figures do.
 
     Returns
     -------
@@ -346,14 +350,15 @@ def modal_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] |
     >>> res.order_after, res.dc_gain_error < 1e-12
     (4, True)
     """
-    from .error import ReductionResult, check_band
+    from .error import ReductionResult, check_band, select_transfer
 
     band_hz = check_band(band_hz)
+    plant = select_transfer(plant, inputs, outputs)
     n = plant.n_states
     split = spectral_split(plant, rigid_tol=rigid_tol)
     rigid, flexible = split.rigid, split.flexible
     check_order(order, n, rigid.n, what="rigid-body part")
-    notes: list[str] = []
+    warnings: list[str] = []
 
     lam = flexible.poles()
     budget = order - rigid.n
@@ -374,8 +379,10 @@ def modal_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] |
     for magnitude, positions in modes:
         if used + len(positions) > budget:
             if used < budget:
-                notes.append(f"order {order} would split the complex pole pair at "
-                             f"{magnitude / (2 * np.pi):.6g} Hz; the reduced model has {rigid.n + used} states")
+                below = rigid.n + used
+                warnings.append(f"order {order} would split the complex pole pair at "
+                                f"{magnitude / (2 * np.pi):.6g} Hz; the reduced model has {below} states "
+                                f"(a whole number of modes: order {below} or {below + len(positions)})")
             break
         select[positions] = True
         used += len(positions)
@@ -392,7 +399,7 @@ def modal_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] |
     reduced = Plant(A, np.vstack([rigid.B, modal.B]), np.hstack([rigid.C, modal.C]), D, tuple(names),
                     plant.inputs, plant.outputs)
     return ReductionResult(method="modal", variant="truncation-dc-matched", full=plant, reduced=reduced,
-                           band_hz=band_hz, notes=tuple(notes), rigid_tol=rigid_tol)
+                           band_hz=band_hz, warnings=tuple(warnings), rigid_tol=rigid_tol)
 
 
 def check_order(order: int, n: int, n_exact: int, *, what: str) -> None:

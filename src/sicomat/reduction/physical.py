@@ -324,7 +324,8 @@ def _single_target(w: np.ndarray, kept: Sequence[str], what: str) -> tuple[str |
 
 def physical_reduction(spec: "MechanicsSpec", keep: Iterable[str] | None = None, *, order: int | None = None,
                        band_hz: tuple[float, float] | None = None, tool: str | None = None,
-                       margin: float = 10.0) -> "ReductionResult":
+                       margin: float = 10.0, inputs: Sequence[str] | None = None,
+                       outputs: Sequence[str] | None = None) -> "ReductionResult":
     """Regroup a lumped model onto a few of its bodies (paper III.C.3).
 
     Parameters
@@ -345,13 +346,17 @@ def physical_reduction(spec: "MechanicsSpec", keep: Iterable[str] | None = None,
         The axis's tool (load) body, kept by the technological rule.
     margin : float, optional
         How much stiffer than the band a spring must be to be merged (frequency ratio).
+    inputs, outputs : sequence of str, optional
+        The transfer the error figures compare (actuator and sensor names, see
+        :func:`~sicomat.reduction.error.select_transfer`); all of them by default. The regrouping
+        itself depends only on the mechanics.
 
     Returns
     -------
     ReductionResult
         ``spec`` (the new :class:`~sicomat.model.LumpedSpec`), ``mechanics``, ``kept`` and
-        ``merged_into``; the plants are the mechanics' state spaces (same actuator and sensor
-        names).
+        ``merged_into``; the plants are the mechanics' state spaces from ``inputs`` to
+        ``outputs`` (same actuator and sensor names).
 
     Raises
     ------
@@ -367,7 +372,7 @@ def physical_reduction(spec: "MechanicsSpec", keep: Iterable[str] | None = None,
     >>> round(res.spec.bodies["m1"].mass, 4), round(res.spec.bodies["m3"].mass, 4)  # m2 rides on m1
     (3.0, 3.0)
     """
-    from .error import ReductionResult, check_band
+    from .error import ReductionResult, check_band, select_transfer
     from .modal import check_order
 
     band_hz = check_band(band_hz)
@@ -376,6 +381,7 @@ def physical_reduction(spec: "MechanicsSpec", keep: Iterable[str] | None = None,
                         f"BeltRackSpec, e.g. axis.mechanics), not {type(spec).__name__}")
     lumped = spec.to_lumped()
     mech = build_mechanics(lumped)
+    full = select_transfer(mech.state_space(), inputs, outputs)
     names = mech.dof_names
     n = mech.n
     if tool is not None and tool not in names:
@@ -413,8 +419,9 @@ def physical_reduction(spec: "MechanicsSpec", keep: Iterable[str] | None = None,
     T = _condensation(mech, kept_idx)
     new_spec, notes, merged_into = _regrouped_spec(lumped, mech, kept, kept_idx, T, psi)
     red_mech = build_mechanics(new_spec)
-    return ReductionResult(method="physical", variant="regrouping", full=mech.state_space(),
-                           reduced=red_mech.state_space(), band_hz=band_hz, kept=tuple(kept),
+    return ReductionResult(method="physical", variant="regrouping", full=full,
+                           reduced=red_mech.state_space().select(full.inputs, full.outputs), band_hz=band_hz,
+                           kept=tuple(kept),
                            mechanics=red_mech, spec=new_spec, notes=tuple(notes), merged_into=merged_into)
 
 
