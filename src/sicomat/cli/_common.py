@@ -16,7 +16,7 @@ __all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "em
 SetOption = typer.Option(
     None, "--set", metavar="KEY=VALUE",
     help="Override a model parameter by key path for this run, units allowed "
-         "(e.g. --set axes.X.mechanics.bodies.load.mass='300 kg'). Repeatable.")
+         "(e.g. --set axes.X.controller.Kv=30, --set 'axes.X.drive.bandwidth=1.2 kHz'). Repeatable.")
 JsonOption = typer.Option(False, "--json", help="Print one JSON object on stdout instead of tables.")
 AxisOption = typer.Option(None, "--axis", help="Axis name (default: the first axis of the model).")
 PlotOption = typer.Option(None, "--plot", help="Write a figure to this file (.png, .svg or .pdf).",

@@ -15,6 +15,20 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 ModelArgument = typer.Argument(..., help="Model file (TOML).", dir_okay=False)
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"sicomat {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", is_eager=True, callback=_print_version,
+                                       help="Print the version of sicomat and exit.")) -> None:
+    """SICOMAT: simulation and control analysis of machine-tool feed axes."""
+
+
 @app.command()
 def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
           json_: bool = JsonOption) -> None:
@@ -130,8 +144,8 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 @app.command()
 def bode(model: Path = ModelArgument,
          loop: str = typer.Option("velocity-open", "--loop",
-                                  help="velocity-open|velocity-closed|position-open|position-closed|plant|"
-                                       "compliance|following-error|disturbance"),
+                                  help="One of: velocity-open, velocity-closed, position-open, position-closed, "
+                                       "plant, compliance, following-error, disturbance."),
          axis: Optional[str] = AxisOption, points: int = typer.Option(2000, "--points", min=10, max=200000),
          nichols: bool = typer.Option(False, "--nichols", help="Draw a Nichols chart instead of a Bode plot."),
          set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
@@ -376,6 +390,18 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                 f"{loop} loop, Kp = {payload['Kp']:.4g} 1/s, Ti = {Ti:.4g} s, Kv = {Kv:.4g} 1/s: "
                 f"overshoot {response.overshoot_percent:.3g} %, rise time {rise}"
                 + ("" if response.stable else " [unstable]"))
+
+
+@app.command()
+def version(json_: bool = JsonOption) -> None:
+    """The versions of sicomat, Python and the numerical libraries (for a bug report)."""
+    from .versions import versions
+
+    info = versions()
+    if json_:
+        emit_json(info)
+    else:
+        typer.echo(" ".join(f"{name} {value}" for name, value in info.items()))
 
 
 _LOOP_NAMES = ("plant", "velocity-open", "velocity-closed", "position-open", "position-closed",
