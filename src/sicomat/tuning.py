@@ -58,8 +58,10 @@ class Gains:
     Kv: float
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``tune --json`` shape: ``velocity: {Kp, Kp_si, Ti}``, ``position: {Kv}``."""
-        return {"velocity": {"Kp": self.Kp_normalized, "Kp_si": self.Kp, "Ti": self.Ti},
+        """The ``tune --json`` shape: ``velocity: {Kp, Kp_normalized, Ti}``, ``position: {Kv}``, named and
+        in the units of the model file's ``[controller]`` (``Kp`` physical; ``Kp_si``, the same value, is
+        deprecated)."""
+        return {"velocity": {"Kp": self.Kp, "Kp_normalized": self.Kp_normalized, "Kp_si": self.Kp, "Ti": self.Ti},
                 "position": {"Kv": self.Kv}}
 
 

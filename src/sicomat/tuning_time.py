@@ -158,7 +158,8 @@ class TimeTuningResult:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``sicomat tune --method time --json`` object."""
-        return {"method": "time", "velocity": {"Kp": self.Kp_normalized, "Kp_si": self.Kp, "Ti": self.Ti},
+        return {"method": "time", "velocity": {"Kp": self.Kp, "Kp_normalized": self.Kp_normalized, "Kp_si": self.Kp,
+                                                      "Ti": self.Ti},
                 "position": {"Kv": self.Kv},
                 "achieved": {"velocity_overshoot_percent": self.velocity.overshoot_percent,
                              "velocity_rise_time": self.velocity.rise_time,
@@ -205,7 +206,7 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
 
     def record_kp(kp, value):
         r = v_overshoot(kp, ti)
-        iterations.append({"step": "velocity Kp", "Kp": kp / m, "Kp_si": kp, "Ti": ti,
+        iterations.append({"step": "velocity Kp", "Kp": kp, "Kp_normalized": kp / m, "Kp_si": kp, "Ti": ti,
                            "overshoot_percent": value, "rise_time": r.rise_time})
 
     lo, hi = m * 1.0, m * 10.0
@@ -221,7 +222,7 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
 
     def record_ti(ti_, value):
         r = v_overshoot(kp, ti_)
-        iterations.append({"step": "velocity Ti", "Kp": kp / m, "Kp_si": kp, "Ti": ti_,
+        iterations.append({"step": "velocity Ti", "Kp": kp, "Kp_normalized": kp / m, "Kp_si": kp, "Ti": ti_,
                            "overshoot_percent": value, "rise_time": r.rise_time})
 
     # overshoot grows as Ti shrinks: bisect on 1/Ti

@@ -350,7 +350,9 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 @app.command()
 def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
          loop: str = typer.Option("velocity", "--loop", help="velocity or position"),
-         kp: Optional[float] = typer.Option(None, "--Kp", help="Velocity gain, normalised (1/s); default: the model's."),
+         kp: Optional[float] = typer.Option(None, "--Kp-normalized", "--Kp",
+                                            help="Velocity gain, normalised (1/s), as the model file's "
+                                                 "Kp_normalized; default: the model's. (--Kp is the old name.)"),
          ti: Optional[float] = typer.Option(None, "--Ti", help="Integral time (s); default: the model's."),
          kv: Optional[float] = typer.Option(None, "--Kv", help="Position gain (1/s); default: the model's."),
          duration: Optional[float] = typer.Option(None, "--duration", help="Length of the response (s)."),
@@ -374,7 +376,8 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         Ti = servo.Ti if ti is None else ti
         Kv = servo.Kv if kv is None else kv
         response = velocity_step(an, Kp, Ti, duration) if loop == "velocity" else position_step(an, Kp, Ti, Kv, duration)
-        payload = {"axis": servo.axis, "loop": loop, "Kp": Kp / servo.m_rigid, "Kp_si": Kp, "Ti": Ti, "Kv": Kv,
+        payload = {"axis": servo.axis, "loop": loop, "Kp": Kp, "Kp_normalized": Kp / servo.m_rigid, "Kp_si": Kp,
+                   "Ti": Ti, "Kv": Kv,
                    **response.to_dict()}
         if plot is not None:
             from ..plotting import plot_step, save_figure
@@ -387,7 +390,7 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
             rise = "-" if response.rise_time is None else f"{response.rise_time * 1e3:.3g} ms"
             Console(highlight=False).print(
-                f"{loop} loop, Kp = {payload['Kp']:.4g} 1/s, Ti = {Ti:.4g} s, Kv = {Kv:.4g} 1/s: "
+                f"{loop} loop, Kp_normalized = {payload['Kp_normalized']:.4g} 1/s, Ti = {Ti:.4g} s, Kv = {Kv:.4g} 1/s: "
                 f"overshoot {response.overshoot_percent:.3g} %, rise time {rise}"
                 + ("" if response.stable else " [unstable]"))
 

@@ -173,7 +173,7 @@ def print_tuning(axis: str, payload: dict[str, Any]) -> None:
     if "initial" in payload:
         table.add_column("initial (rigid)", justify="right")
     table.add_column("tuned", justify="right")
-    rows = (("Kp (1/s, normalised)", ("velocity", "Kp")), ("Kp (SI)", ("velocity", "Kp_si")),
+    rows = (("Kp_normalized (1/s)", ("velocity", "Kp_normalized")), ("Kp (SI)", ("velocity", "Kp")),
             ("Ti (s)", ("velocity", "Ti")), ("Kv (1/s)", ("position", "Kv")))
     for label, (group, key) in rows:
         cells = [f"{payload['initial'][group][key]:.5g}"] if "initial" in payload else []
