@@ -95,3 +95,67 @@ def test_step_json_names_gains_as_the_model_file():
     assert payload["Kp"] == pytest.approx(120.0 * loop.m_rigid, rel=1e-12)  # physical, as the file's Kp
     old_name = json.loads(run("step", P5M4S, "--Kp", "120", "--json").stdout)
     assert old_name["Kp_normalized"] == payload["Kp_normalized"]
+
+
+XY = str(EXAMPLES / "xy_table.toml")
+JSON_COMMANDS = {
+    "check": ["check", P5M4S],
+    "modal": ["modal", P5M4S],
+    "simulate": ["simulate", P5M4S, "--move", "2"],
+    "simulate-gcode": ["simulate", XY, "--gcode", str(EXAMPLES / "contour.nc")],
+    "bode": ["bode", P5M4S, "--points", "50"],
+    "margins": ["margins", P5M4S],
+    "tune": ["tune", P5M4S],
+    "tune-time": ["tune", P5M4S, "--method", "time"],
+    "step": ["step", P5M4S],
+    "circle": ["circle", XY, "--radius", "5", "--feed", "600"],
+    "reduce": ["reduce", P5M4S, "--method", "physical", "--keep", "primary,load,structure"],
+}
+
+
+def _items(value, path=""):
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield path, key, value
+            yield from _items(item, f"{path}.{key}")
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            yield from _items(item, f"{path}.{i}")
+
+
+@pytest.fixture(scope="module")
+def json_outputs():
+    out = {}
+    for name, args in JSON_COMMANDS.items():
+        result = run(*args, "--json")
+        assert result.exit_code == 0, (name, result.output)
+        out[name] = json.loads(result.stdout)
+    return out
+
+
+def test_json_units_follow_one_rule(json_outputs):
+    """An unsuffixed key is SI; a key still carrying an SI suffix (``_s``, ``_rad_s``) is a deprecated one
+    from the table in docs/conventions.md and has the rule's name beside it, same value."""
+    from sicomat.cli.jsonkeys import SI_NAMES
+
+    seen = set()
+    for name, payload in json_outputs.items():
+        for path, key, mapping in _items(payload):
+            if key.endswith("_s") and not key.endswith("_samples"):
+                assert key in SI_NAMES, f"{name}: {path}.{key} carries an SI suffix and is not in SI_NAMES"
+                assert mapping[SI_NAMES[key]] == mapping[key], f"{name}: {path}.{key}"
+                seen.add(key)
+    assert {"duration_s", "step_s", "bandwidth_rad_s", "velocity_crossover_rad_s"} <= seen
+    conventions = (ROOT / "docs" / "conventions.md").read_text()
+    for old, new in SI_NAMES.items():
+        assert f"`{old}`" in conventions and f"`{new}`" in conventions, old
+
+
+def test_json_echoes_options_in_their_own_units(json_outputs):
+    circle = json_outputs["circle"]
+    assert circle["feed_mm_min"] == pytest.approx(600.0, rel=1e-12) and circle["feed"] == pytest.approx(0.01)
+    assert circle["radius_mm"] == pytest.approx(5.0, rel=1e-12) and circle["radius"] == pytest.approx(5e-3)
+    drive = json_outputs["check"]["axes"]["X"]["drive"]
+    assert drive["bandwidth_hz"] == drive["bandwidth"] == 1000.0  # the model file's "1000 Hz"
+    simulate = json_outputs["simulate"]
+    assert simulate["duration"] == pytest.approx(simulate["samples"] * simulate["time_step"], rel=1e-12)

@@ -58,8 +58,11 @@ def load(model: Path, overrides: Optional[List[str]]):
 
 def emit_json(payload: dict[str, Any]) -> None:
     """Write one JSON object to stdout; a non-finite number (an unstable loop's overshoot, a
-    missing margin) is written as ``null``: JSON has no infinity."""
-    sys.stdout.write(json.dumps(_finite(payload), indent=2, allow_nan=False) + "\n")
+    missing margin) is written as ``null``: JSON has no infinity. Keys follow the unit rule of
+    :mod:`.jsonkeys` (the SI name beside every deprecated SI-suffixed key)."""
+    from .jsonkeys import with_si_names
+
+    sys.stdout.write(json.dumps(_finite(with_si_names(payload)), indent=2, allow_nan=False) + "\n")
 
 
 def _finite(value: Any) -> Any:

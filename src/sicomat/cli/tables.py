@@ -34,8 +34,27 @@ def check_payload(machine: "Machine", mechanics: dict[str, "Mechanics"]) -> dict
         spec = machine.axes[name]
         for block in ("drive", "controller", "trajectory"):
             value = getattr(spec, block)
-            axes[name][block] = value.model_dump(mode="json", exclude_none=True) if value is not None else None
+            axes[name][block] = _with_hz(value.model_dump(mode="json", exclude_none=True)) if value is not None else None
     return {"valid": True, "name": machine.name, "axes": axes}
+
+
+# the model file's frequency-typed keys: values in Hz under a name without a suffix
+_MODEL_FILE_HZ = ("bandwidth", "frequency")
+
+
+def _with_hz(block: Any) -> Any:
+    """A model-file block as ``check --json`` echoes it: its own keys, and ``<key>_hz`` beside each
+    frequency the file holds in Hz (the JSON unit rule: an unsuffixed key is SI)."""
+    if isinstance(block, dict):
+        out = {}
+        for key, value in block.items():
+            out[key] = _with_hz(value)
+            if key in _MODEL_FILE_HZ and isinstance(value, (int, float)):
+                out[f"{key}_hz"] = value
+        return out
+    if isinstance(block, list):
+        return [_with_hz(v) for v in block]
+    return block
 
 
 def _stretch(mech: "Mechanics", vector) -> str:
