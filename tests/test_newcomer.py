@@ -159,3 +159,42 @@ def test_json_echoes_options_in_their_own_units(json_outputs):
     assert drive["bandwidth_hz"] == drive["bandwidth"] == 1000.0  # the model file's "1000 Hz"
     simulate = json_outputs["simulate"]
     assert simulate["duration"] == pytest.approx(simulate["samples"] * simulate["time_step"], rel=1e-12)
+
+
+@pytest.mark.parametrize("width", [80, 60, 40])
+def test_tables_never_cut_a_number(width):
+    modal = json.loads(run("modal", P5M4S, "--json").stdout)
+    margins = json.loads(run("margins", P5M4S, "--json").stdout)
+    text = run("modal", P5M4S, env={"COLUMNS": str(width)}).stdout
+    assert "…" not in text
+    for mode in modal["modes"][1:]:
+        assert f"{mode['frequency_hz']:.4f}" in text  # the table's own format, whole
+    text = run("margins", P5M4S, env={"COLUMNS": str(width)}).stdout
+    assert "…" not in text
+    for loop in ("velocity", "position"):
+        assert f"{margins[loop]['gain_crossover_rad_s']:.4g}" in text
+        assert f"{margins[loop]['bandwidth_rad_s']:.4g}" in text
+    for args in (["check", P5M4S], ["tune", P5M4S], ["simulate", P5M4S, "--move", "2"]):
+        result = run(*args, env={"COLUMNS": str(width)})
+        assert result.exit_code == 0 and "…" not in result.stdout, result.stdout
+
+
+@pytest.mark.parametrize("width", [80, 60])
+def test_print_table_keeps_long_numbers_whole_in_a_narrow_console(width):
+    import io
+
+    from rich.console import Console
+    from rich.table import Table
+
+    from sicomat.cli.layout import print_table
+
+    values = [f"{1.7430000123456e5 * 10 ** k:.10e}" for k in range(9)]
+    table = Table(title="wide")
+    for k in range(len(values)):
+        table.add_column(f"column {k}", justify="right")
+    table.add_row(*values)
+    console = Console(width=width, file=io.StringIO(), color_system=None)
+    print_table(console, table)
+    text = console.file.getvalue()
+    assert all(value in text for value in values), text
+    assert max(len(line) for line in text.splitlines()) <= width
