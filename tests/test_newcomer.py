@@ -7,6 +7,7 @@ import json
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -198,3 +199,87 @@ def test_print_table_keeps_long_numbers_whole_in_a_narrow_console(width):
     text = console.file.getvalue()
     assert all(value in text for value in values), text
     assert max(len(line) for line in text.splitlines()) <= width
+
+
+# ------------------------------------------------------------------------------------------- plots
+def _series(model: str, move: float = 1e-3):
+    from sicomat import load_model
+    from sicomat.loop import build_servo_loop
+    from sicomat.setpoints import trapezoid_profile
+    from sicomat.simulate import simulate
+
+    loop = build_servo_loop(load_model(model))
+    return simulate(loop, trapezoid_profile(move, 0.1, 1.0), duration=0.05)
+
+
+@pytest.mark.parametrize("model, unit", [(P5M4S, "(N)"), (str(EXAMPLES / "ballscrew_3m2s.toml"), "(N·m)")])
+def test_effort_axis_has_the_actuators_unit(model, unit):
+    series = _series(model)
+    effort_axis = series.plot().axes[2]
+    assert effort_axis.get_ylabel().endswith(unit)
+    chosen = series.plot(["drive.effort", "drive.current", "load.x" if model == P5M4S else "table.x"])
+    assert [ax.get_ylabel().rsplit(" ", 1)[-1] for ax in chosen.axes] == [unit, "(A)", "(m)"]
+
+
+def test_mode_shapes_plot_has_a_y_label_and_a_legend():
+    from sicomat import build_mechanics, load_model, modal_analysis
+
+    result = modal_analysis(build_mechanics(load_model(P5M4S).axis("X").mechanics))
+    fig = result.plot()
+    visible = [ax for ax in fig.axes if ax.get_visible()]
+    assert all(ax.get_ylabel() for k, ax in enumerate(visible) if k % 4 == 0)
+    assert fig.legends and len(fig.legends[0].get_texts()) == 2
+
+
+def test_contour_plot_magnifies_the_deviation_visibly_by_default():
+    from scipy.spatial import cKDTree
+
+    from sicomat import load_model
+    from sicomat.cli.simulate_cmd import simulate_gcode
+
+    run_ = simulate_gcode(load_model(XY), EXAMPLES / "contour.nc", None, None, None)
+    fig = run_.plot()
+    ax = fig.axes[0]
+    programmed, actual = ax.get_lines()[:2]
+    label = actual.get_label()
+    factor = float(label.split("×")[1].rstrip(")"))
+    assert factor > 1 and f"×{factor:g}" in fig.get_suptitle()
+    # the drawn deviation (mm) measured independently: distance of each drawn point to the nearest
+    # setpoint sample; the samples are one position period apart (<= 0.04 mm at 2000 mm/min), so this
+    # overestimates the distance to the polyline by at most half of that, against a drawn deviation of mm
+    drawn = np.column_stack(actual.get_data())
+    sp = np.column_stack(programmed.get_data())
+    deviation = cKDTree(sp).query(drawn)[0].max()
+    size = 0.5 * np.linalg.norm(np.ptp(sp, axis=0))
+    assert 0.05 < deviation / size < 0.25, deviation / size  # the rule: 8-20 % (the setpoint trace's
+    # rounded corners and the sample spacing move the measured value a little either way)
+    assert "×3)" in run_.plot(3.0).axes[0].get_lines()[1].get_label()  # an explicit factor wins
+
+
+def test_contour_magnification_option_is_checked():
+    result = run("simulate", XY, "--gcode", str(EXAMPLES / "contour.nc"), "--magnification", "0")
+    assert result.exit_code == 2 and "--magnification: expected a finite factor > 0" in result.stderr
+
+
+@pytest.mark.parametrize("model", [P5M4S, str(EXAMPLES / "paper_2m1s.toml"), str(EXAMPLES / "ballscrew_3m2s.toml")])
+def test_nichols_labels_do_not_overlap(model):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from sicomat import load_model
+    from sicomat.freqplot import nichols_figure
+    from sicomat.loop import build_servo_loop
+    from sicomat.looptf import LoopAnalysis, default_omega
+    from sicomat.margins import stability_margins
+
+    loop = build_servo_loop(load_model(model))
+    frf = LoopAnalysis.of(loop).response("velocity-open", default_omega(loop, "velocity-open", 2000))
+    fig = nichols_figure([frf], margins=stability_margins(frf))
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    texts = [t for t in fig.axes[0].texts if t.get_visible() and t.get_text().strip()]
+    assert any(t.get_text().startswith("PM ") for t in texts) and any(t.get_text().startswith("GM ") for t in texts)
+    boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts]
+    for i, (a, box_a) in enumerate(boxes):
+        for b, box_b in boxes[i + 1:]:
+            assert not box_a.overlaps(box_b), (a, b)

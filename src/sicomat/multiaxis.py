@@ -68,8 +68,9 @@ class PathRun:
             cols[f"{name}.actual"] = self.actual[:, k]
         return pd.DataFrame(cols, index=pd.Index(self.time, name="time"))
 
-    def plot(self, magnification: float = 1.0):
-        """The path and the actual trace in the plane, and the contour error against time."""
+    def plot(self, magnification: float | None = None):
+        """The path and the actual trace in the plane (the deviation magnified: automatic by default),
+        and the contour error against time."""
         from .plotting import plot_path_run
 
         return plot_path_run(self, magnification)

@@ -87,6 +87,9 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
              feed: Optional[float] = typer.Option(None, "--feed", metavar="MM_PER_MIN",
                                                   help="Override the G-code feed rate (mm/min)."),
              linear: bool = typer.Option(False, "--linear", help="Drop limits, quantizers and Coulomb friction."),
+             magnification: Optional[float] = typer.Option(None, "--magnification",
+                                                           help="Scale of the contour error in the --gcode plot "
+                                                                "(default: automatic, shown on the plot)."),
              out: Optional[Path] = typer.Option(None, "--out", help="Write every signal to this CSV file.",
                                                 dir_okay=False),
              set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
@@ -95,8 +98,9 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
     with guarded(model):
         from ..loop import build_servo_loop
         from ..simulate import simulate as run_simulation
-        from .simulate_cmd import choose_profile, simulate_payload
+        from .simulate_cmd import check_magnification, choose_profile, simulate_payload
 
+        check_magnification(magnification)
         machine = load(model, set_)
         if gcode is not None:
             from .simulate_cmd import simulate_gcode
@@ -109,7 +113,7 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             if plot is not None:
                 from ..plotting import save_figure
 
-                save_figure(run.plot(), plot)
+                save_figure(run.plot(magnification), plot)
             payload = run.to_dict()
             summary = {key: max((a[key] for a in payload["axes"].values() if a[key] is not None), key=abs)
                        for key in ("max_following_error", "rms_following_error", "final_error", "overshoot_percent")}

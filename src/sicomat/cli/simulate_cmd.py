@@ -6,7 +6,7 @@ from typing import Any
 
 from ..errors import ModelError
 
-__all__ = ["choose_profile", "simulate_payload"]
+__all__ = ["choose_profile", "simulate_payload", "check_magnification"]
 
 DEFAULT_MAX_VELOCITY = 0.2   # m/s, for --move without limits in the model
 DEFAULT_MAX_ACCELERATION = 2.0  # m/s^2
@@ -35,6 +35,13 @@ def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration)
                          source="options")
     profile = profile_from_spec(trajectory)
     return profile, profile.end_time + (0.2 if profile.kind != "ramp" else 0.3)
+
+
+def check_magnification(magnification: float | None) -> None:
+    """``--magnification`` must be a finite factor > 0 (or absent: automatic)."""
+    if magnification is not None and not 0.0 < magnification < float("inf"):
+        raise ModelError("expected a finite factor > 0 (or leave it out: automatic)", source="--magnification",
+                         value=magnification)
 
 
 def simulate_payload(series) -> dict[str, Any]:

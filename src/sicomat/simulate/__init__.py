@@ -98,7 +98,13 @@ def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinea
     metrics = step_metrics(result.time, signals["setpoint.fine"], actual, profile.distance, start=profile.breaks[0])
     return TimeSeries(time=result.time, signals=signals, metrics=metrics,
                       info={"wall_time_s": wall, "samples": n_steps, "step": loop.base_period,
-                            "axis": loop.axis, "notes": simulation_notes(loop, nonlinear)})
+                            "axis": loop.axis, "notes": simulation_notes(loop, nonlinear),
+                            "effort_unit": effort_unit(loop)})
+
+
+def effort_unit(loop: "ServoLoop") -> str:
+    """The unit of the drive's effort: ``"N"`` for a force actuator, ``"N·m"`` for a torque one."""
+    return "N" if loop.mechanics.actuator(loop.actuator).kind == "translational" else "N·m"
 
 
 def simulation_notes(loop: "ServoLoop", nonlinear: bool = True) -> list[str]:
