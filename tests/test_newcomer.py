@@ -283,3 +283,67 @@ def test_nichols_labels_do_not_overlap(model):
     for i, (a, box_a) in enumerate(boxes):
         for b, box_b in boxes[i + 1:]:
             assert not box_a.overlaps(box_b), (a, b)
+
+
+# ------------------------------------------------------------------------------------------ README
+README = (ROOT / "README.md").read_text()
+
+
+def _blocks(language: str) -> list[str]:
+    import re
+
+    return re.findall(rf"```{language}\n(.*?)```", README, re.S)
+
+
+def _readme_commands() -> list[list[str]]:
+    import shlex
+
+    commands = []
+    for block in _blocks("sh"):
+        for line in block.replace("\\\n", " ").splitlines():
+            words = shlex.split(line, comments=True)
+            if words and words[0] == "sicomat":
+                commands.append(words[1:])
+    return commands
+
+
+def test_readme_opens_with_the_two_make_commands():
+    first = _blocks("sh")[0].splitlines()
+    assert [line.split("#")[0].strip() for line in first] == ["make demo", "make test"]
+
+
+def test_readme_says_how_to_get_sicomat_on_the_path_before_its_commands():
+    section = README[README.index("## Command line"):]
+    first_command = section.index("sicomat check")
+    assert "source .venv/bin/activate" in section[:first_command] and ".venv/bin/sicomat" in section[:first_command]
+
+
+def test_readme_lists_every_command():
+    import typer.main
+
+    listed = {words[0] for words in _readme_commands() if words and not words[0].startswith("-")}
+    registered = set(typer.main.get_command(app).commands)
+    assert listed <= registered, listed - registered
+    assert registered - {"version"} <= listed, registered - listed  # `version` is in a comment there
+
+
+def test_readme_commands_run_as_written(tmp_path, monkeypatch):
+    import shutil
+
+    shutil.copytree(EXAMPLES, tmp_path / "examples")
+    monkeypatch.chdir(tmp_path)
+    for words in _readme_commands():
+        result = run(*words)
+        assert result.exit_code == 0, (words, result.output)
+
+
+def test_readme_python_block_runs_as_written(tmp_path, monkeypatch, capsys):
+    import shutil
+
+    shutil.copytree(EXAMPLES, tmp_path / "examples")
+    monkeypatch.chdir(tmp_path)
+    (code,) = _blocks("python")
+    namespace: dict = {"__name__": "__readme__"}
+    exec(compile(code, "README.md", "exec"), namespace)
+    assert 75.0 < namespace["modes"].f_meca_hz < 85.0  # paper IV.B: "a first mode near f_meca = 80 Hz"
+    assert namespace["tuned"].tuned.Kp > 0 and f"{namespace['modes'].f_meca_hz}" in capsys.readouterr().out
