@@ -347,3 +347,46 @@ def test_readme_python_block_runs_as_written(tmp_path, monkeypatch, capsys):
     exec(compile(code, "README.md", "exec"), namespace)
     assert 75.0 < namespace["modes"].f_meca_hz < 85.0  # paper IV.B: "a first mode near f_meca = 80 Hz"
     assert namespace["tuned"].tuned.Kp > 0 and f"{namespace['modes'].f_meca_hz}" in capsys.readouterr().out
+
+
+# -------------------------------------------------------------------------------------------- docs
+def test_table_1_states_the_crossings_the_tool_reports():
+    import re
+
+    numbers = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8, "nine": 9}
+    text = (ROOT / "docs" / "table-1.md").read_text()
+    stated = re.search(r"crosses 0 dB (\w+) times", text).group(1)
+    assert "sicomat margins examples/paper_5m4s.toml --json" in text
+    payload = json.loads(run("margins", P5M4S, "--json").stdout)
+    assert numbers[stated] == len(payload["velocity"]["gain_crossovers"])
+
+
+def test_docs_link_only_inside_the_repository():
+    import re
+
+    for doc in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        text = doc.read_text()
+        assert "../shared" not in text, doc.name
+        for target in re.findall(r"\]\(([^)#\s]+)", text):
+            if "://" in target:
+                continue
+            resolved = (doc.parent / target).resolve()
+            assert resolved.is_relative_to(ROOT) and resolved.exists(), (doc.name, target)
+
+
+def test_servo_doc_lists_every_trajectory_type():
+    import typing
+
+    from sicomat import servo_spec
+
+    row = next(line for line in (ROOT / "docs" / "servo.md").read_text().splitlines()
+               if line.startswith("| trajectory generator"))
+    kinds = set()
+    for name in dir(servo_spec):
+        cls = getattr(servo_spec, name)
+        fields = getattr(cls, "model_fields", {})
+        if name.endswith("Setpoint") and "type" in fields:
+            kinds.update(typing.get_args(fields["type"].annotation))
+    assert {"step", "ramp", "trapezoid", "s-curve"} <= kinds
+    assert all(f"`{kind}`" in row for kind in kinds), row
+    assert "issue" not in row
