@@ -390,3 +390,21 @@ def test_servo_doc_lists_every_trajectory_type():
     assert {"step", "ramp", "trapezoid", "s-curve"} <= kinds
     assert all(f"`{kind}`" in row for kind in kinds), row
     assert "issue" not in row
+
+
+def test_circle_plot_magnification_is_automatic_round_and_shown():
+    from sicomat import load_model
+    from sicomat.multiaxis import circle_test
+
+    test = circle_test(load_model(XY), 5e-3, 0.01, clockwise=False)
+    fig = test.plot()
+    ax = fig.axes[0]
+    actual = next(line for line in ax.get_lines() if line.get_label().startswith("actual"))
+    factor = float(actual.get_label().split("×")[1].rstrip(")"))
+    mantissa = factor / 10 ** np.floor(np.log10(factor))
+    assert min(abs(mantissa - m) for m in (1, 2, 5)) < 1e-9  # a 1-2-5 factor, as printed
+    assert f"×{factor:g}" in ax.get_title()
+    drawn = np.max(np.abs(np.asarray(actual.get_ydata()) - 1.0))  # nominal circle at 1: fraction of R
+    assert 0.08 - 1e-12 <= drawn <= 0.2 + 1e-12, drawn
+    assert "×7)" in next(line.get_label() for line in test.plot(7.0).axes[0].get_lines()
+                         if line.get_label().startswith("actual"))
