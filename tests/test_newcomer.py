@@ -408,3 +408,83 @@ def test_circle_plot_magnification_is_automatic_round_and_shown():
     assert 0.08 - 1e-12 <= drawn <= 0.2 + 1e-12, drawn
     assert "×7)" in next(line.get_label() for line in test.plot(7.0).axes[0].get_lines()
                          if line.get_label().startswith("actual"))
+
+
+# ---------------------------------------------------------------------------------------- progress
+class _Recorder:
+    def __init__(self):
+        self.calls = []
+
+    def __call__(self, task, done, total):
+        self.calls.append((task, done, total))
+
+
+def test_library_reports_progress_through_a_callback():
+    from sicomat import build_mechanics, load_model, modal_analysis
+    from sicomat.loop import build_servo_loop
+    from sicomat.setpoints import trapezoid_profile
+    from sicomat.simulate import simulate
+    from sicomat.tuning import tune_frequency
+
+    machine = load_model(P5M4S)
+    rec = _Recorder()
+    modal_analysis(build_mechanics(machine.axis("X").mechanics), progress=rec)
+    assert [(done, total) for _, done, total in rec.calls] == [(0, 4), (1, 4), (2, 4), (3, 4), (4, 4)]
+    loop = build_servo_loop(machine)
+    rec = _Recorder()
+    series = simulate(loop, trapezoid_profile(1e-3, 0.1, 1.0), 0.02, progress=rec)
+    assert rec.calls[-1][1:] == (series.info["samples"],) * 2
+    rec = _Recorder()
+    result = tune_frequency(loop, suggest_notch=False, progress=rec)
+    assert rec.calls and rec.calls[-1][1] == result.evaluations
+    assert [done for _, done, _ in rec.calls] == sorted(done for _, done, _ in rec.calls)
+
+
+def test_batch_with_progress_gives_the_same_figures():
+    from sicomat import load_model
+    from sicomat.loop import build_servo_loop
+    from sicomat.setpoints import trapezoid_profile
+    from sicomat.simulate import simulate_batch
+
+    loop = build_servo_loop(load_model(P5M4S))
+    loops = [loop.with_gains(Kv=loop.Kv * f) for f in np.linspace(0.5, 1.5, 5)]
+    profile = trapezoid_profile(1e-3, 0.1, 1.0)
+    whole = simulate_batch(loops, profile, 0.02)
+    rec = _Recorder()
+    chunked = simulate_batch(loops, profile, 0.02, progress=rec)
+    # the variants are independent in the kernel: the same operations on the same numbers, whether
+    # they run in one call or in several
+    np.testing.assert_array_equal(chunked.max_following_error, whole.max_following_error)
+    np.testing.assert_array_equal(chunked.final_error, whole.final_error)
+    assert rec.calls[-1][1:] == (5, 5)
+
+
+@pytest.fixture
+def terminal_stderr(monkeypatch):
+    """Make the CLI believe stderr is a terminal, with the bar shown at once."""
+    import io
+
+    from rich.console import Console
+
+    import sicomat.cli.progress as progress
+
+    screen = io.StringIO()
+    monkeypatch.setattr(progress, "_stderr_is_terminal", lambda: True)
+    monkeypatch.setattr(progress, "DELAY", 0.0)
+    monkeypatch.setattr(progress, "_console", lambda: Console(file=screen, force_terminal=True, width=100))
+    return screen
+
+
+@pytest.mark.parametrize("args", [["simulate", P5M4S, "--move", "5", "--duration", "1"],
+                                  ["tune", P5M4S], ["modal", P5M4S],
+                                  ["circle", XY, "--radius", "5", "--feed", "600"]])
+def test_json_stdout_stays_pure_with_the_progress_bar_on(terminal_stderr, args):
+    result = run(*args, "--json")
+    assert result.exit_code == 0, result.output
+    json.loads(result.stdout)  # one JSON object, nothing else
+    assert terminal_stderr.getvalue().strip(), "the bar was not drawn"
+
+
+def test_no_progress_bar_when_stderr_is_not_a_terminal():
+    result = run("simulate", P5M4S, "--move", "5", "--duration", "1", "--json")
+    assert result.exit_code == 0 and result.stderr == ""

@@ -20,6 +20,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .circle import CircleResult
     from .model import Machine
     from .path import Path, PathSamples
+    from .progress import ProgressCallback
     from .timeseries import TimeSeries
 
 __all__ = ["PathRun", "CircleTest", "axis_for", "with_feedforward", "simulate_path", "circle_test"]
@@ -123,8 +124,9 @@ def with_feedforward(machine: "Machine", mode: str | None) -> "Machine":
 
 
 def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float = 0.05,
-                  nonlinear: bool = True) -> PathRun:
-    """Simulate every axis of the machine that the interpolated path moves, and join the traces.
+                  nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> PathRun:
+    """Simulate every axis of the machine that the interpolated path moves, and join the traces;
+    ``progress`` (:mod:`sicomat.progress`) follows each axis's simulation.
 
     Raises
     ------
@@ -143,7 +145,7 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
     wall = 0.0
     for k, name in enumerate(names):
         loop = build_servo_loop(machine, mapping[name])
-        series = simulate(loop, samples.axis_setpoint(k), duration, nonlinear=nonlinear)
+        series = simulate(loop, samples.axis_setpoint(k), duration, nonlinear=nonlinear, progress=progress)
         wall += series.info["wall_time_s"]
         runs[name] = series
     first = runs[names[0]]
@@ -167,7 +169,7 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
 def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bool = False,
                 feedforward: str | None = None, max_acceleration: float | None = None,
                 max_jerk: float | None = None, axes: tuple[str, str] = ("x", "y"),
-                nonlinear: bool = True) -> CircleTest:
+                nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> CircleTest:
     """Simulate the ballbar circle (lead-in arc, 360° evaluated at constant feed, lead-out arc).
 
     Parameters
@@ -188,6 +190,8 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
         The two path axes (machine axes of the same names).
     nonlinear : bool
         ``False`` simulates the linear loops (no friction, limits or quantization).
+    progress : callable, optional
+        Follows the axes' simulations (:mod:`sicomat.progress`).
     """
     from .circle import evaluate_circle
     from .path import circle_test_path, interpolate
@@ -209,7 +213,7 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
     first = machine.axes[axis_for(machine, axes[0])]
     period = first.controller.position_period if first.controller is not None else 1e-3
     samples = interpolate(path, feed, acc, jerk, period)
-    run = simulate_path(machine, samples, nonlinear=nonlinear)
+    run = simulate_path(machine, samples, nonlinear=nonlinear, progress=progress)
     circle = evaluate_circle(run.actual[:, 0], run.actual[:, 1], test.center[:2], radius, s=run.s,
                              window=test.window, clockwise=clockwise, feed=feed)
     return CircleTest(run=run, circle=circle, feedforward=feedforward or "model")

@@ -19,9 +19,11 @@ import numpy as np
 from .errors import AnalysisError
 from .frequency import zoh_matrices
 from .looptf import LoopAnalysis
+from .progress import notify
 
 if TYPE_CHECKING:  # pragma: no cover
     from .loop import ServoLoop
+    from .progress import ProgressCallback
 
 __all__ = ["TimeTargets", "StepResponse", "TimeTuningResult", "velocity_step", "position_step", "tune_time"]
 
@@ -183,8 +185,10 @@ def _bisect(f, lo: float, hi: float, target: float, tol: float, record, max_iter
     return np.sqrt(lo * hi)
 
 
-def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuningResult:
-    """Run the three steps of the time approach automatically.
+def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None, *,
+              progress: "ProgressCallback | None" = None) -> TimeTuningResult:
+    """Run the three steps of the time approach automatically; ``progress`` (:mod:`sicomat.progress`)
+    is told each step response computed (the total is not known in advance).
 
     Raises
     ------
@@ -197,8 +201,11 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
     m = loop.m_rigid
     iterations: list[dict[str, Any]] = []
     notes: list[str] = []
+    count = [0]  # step responses computed, for the progress callback
 
     def v_overshoot(kp: float, ti: float) -> StepResponse:
+        count[0] += 1
+        notify(progress, "tuning by step responses", count[0], None)
         return velocity_step(an, kp, ti)
 
     # 1. Kp with Ti large, for ~10 % overshoot
@@ -234,6 +241,8 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
 
     # 3. Kv for the desired position overshoot: the largest Kv that does not exceed it
     def p_overshoot(kv: float) -> float:
+        count[0] += 1
+        notify(progress, "tuning by step responses", count[0], None)
         return position_step(an, kp, ti, kv).overshoot_percent
 
     def record_kv(kv, value):

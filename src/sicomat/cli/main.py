@@ -8,6 +8,7 @@ from typing import List, Optional
 import typer
 
 from ._common import AxisOption, JsonOption, PlotOption, SetOption, emit_json, guarded, load
+from .progress import progress_bar
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="SICOMAT: simulation and control analysis of machine-tool feed axes.")
@@ -57,7 +58,8 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
         machine = load(model, set_)
         name = machine.axis_name(axis)
-        result = modal_analysis(build_mechanics(machine.axes[name].mechanics))
+        with progress_bar() as progress:
+            result = modal_analysis(build_mechanics(machine.axes[name].mechanics), progress=progress)
         if plot is not None:
             from ..plotting import save_figure
 
@@ -105,7 +107,8 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         if gcode is not None:
             from .simulate_cmd import simulate_gcode
 
-            run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear)
+            with progress_bar() as progress:
+                run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear, progress=progress)
             if out is not None:
                 from ..timeseries import write_frame_csv
 
@@ -128,8 +131,9 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         loop = build_servo_loop(machine, axis)
         profile, default_duration = choose_profile(machine.axes[loop.axis].trajectory, step, move,
                                                    max_velocity, max_acceleration)
-        series = run_simulation(loop, profile, duration if duration is not None else default_duration,
-                                nonlinear=not linear)
+        with progress_bar() as progress:
+            series = run_simulation(loop, profile, duration if duration is not None else default_duration,
+                                    nonlinear=not linear, progress=progress)
         if out is not None:
             series.to_csv(out)
         if plot is not None:
@@ -236,7 +240,8 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         if method == "time":
             from ..tuning_time import tune_time
 
-            result = tune_time(servo)
+            with progress_bar() as progress:
+                result = tune_time(servo, progress=progress)
             payload = result.to_dict()
             gains = {"Kp": result.Kp, "Kp_normalized": result.Kp_normalized, "Ti": result.Ti, "Kv": result.Kv}
             notch = None
@@ -248,7 +253,8 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                     position_phase_margin=None if position_crossover is not None
                                     else (position_phase_margin if position_phase_margin is not None else 80.0),
                                     position_crossover=position_crossover, min_gain_margin=min_gain_margin)
-            result = tune_frequency(servo, targets)
+            with progress_bar() as progress:
+                result = tune_frequency(servo, targets, progress=progress)
             chosen = result.with_notch if apply_notch and result.with_notch is not None else result
             payload = {"method": "frequency", **chosen.to_dict()}
             if chosen is not result:
@@ -293,7 +299,9 @@ def circle(model: Path = ModelArgument,
         if not feed > 0:
             raise ModelError("the feed must be > 0 mm/min", source="--feed", value=feed)
         machine = load(model, set_)
-        test = circle_test(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw, feedforward=feedforward)
+        with progress_bar() as progress:
+            test = circle_test(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw, feedforward=feedforward,
+                               progress=progress)
         if plot is not None:
             from ..plotting import save_figure
 

@@ -52,7 +52,7 @@ def simulate_payload(series) -> dict[str, Any]:
             "wall_time_s": series.info["wall_time_s"], "notes": list(series.info.get("notes", []))}
 
 
-def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True):
+def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True, progress=None):
     """Parse a G-code file, interpolate it with the machine's interpolator, simulate the axes it moves."""
     from pathlib import Path as _Path
 
@@ -81,4 +81,4 @@ def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlin
     feed = feed_mm_min * 1e-3 / 60.0 if feed_mm_min is not None else None
     samples = interpolate(path, feed, ip.max_acceleration, ip.max_jerk, period,
                           corner_tolerance=ip.corner_tolerance)
-    return simulate_path(machine, samples, nonlinear=nonlinear)
+    return simulate_path(machine, samples, nonlinear=nonlinear, progress=progress)
