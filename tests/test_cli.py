@@ -175,7 +175,7 @@ def test_tune_json_contract_and_written_model(tmp_path):
                  "--position-phase-margin", "80", "--write", str(tuned), "--json")
     assert result.exit_code == 0, result.output
     payload = json.loads(result.stdout)
-    assert set(payload["velocity"]) >= {"Kp", "Kp_si", "Ti"} and "Kv" in payload["position"]
+    assert set(payload["velocity"]) >= {"Kp", "Kp_normalized", "Ti"} and "Kv" in payload["position"]
     for key in ("velocity_phase_margin_deg", "velocity_crossover_rad_s", "position_phase_margin_deg",
                 "position_crossover_rad_s", "gain_margin_db", "targets_met", "notch"):
         assert key in payload["achieved"]
@@ -184,7 +184,7 @@ def test_tune_json_contract_and_written_model(tmp_path):
     from sicomat import load_model
 
     written = load_model(tuned).axes["X"].controller
-    assert written.Kp_normalized == pytest.approx(payload["velocity"]["Kp"], rel=1e-12)
+    assert written.Kp_normalized == pytest.approx(payload["velocity"]["Kp_normalized"], rel=1e-12)
     assert written.Kv == pytest.approx(payload["position"]["Kv"], rel=1e-12)
 
 
@@ -215,7 +215,7 @@ def test_step_command_is_the_manual_time_approach(tmp_path):
     loop = build_servo_loop(sicomat_load(P5M4S))
     expected = velocity_step(LoopAnalysis.of(loop), 120 * loop.m_rigid, 0.02)
     assert payload["overshoot_percent"] == pytest.approx(expected.overshoot_percent, rel=1e-9)
-    assert payload["Kp"] == pytest.approx(120.0)
+    assert payload["Kp_normalized"] == pytest.approx(120.0)
     # with Ti large (the method's first step) a larger proportional gain gives more overshoot
     low = json.loads(run("step", P5M4S, "--Kp", "200", "--Ti", "0.5", "--json").stdout)
     high = json.loads(run("step", P5M4S, "--Kp", "500", "--Ti", "0.5", "--json").stdout)

@@ -111,7 +111,7 @@ def test_bode_of_an_unstable_open_loop_exits_3():
 
 
 def _margins_of(model: str, velocity: dict, position: dict) -> dict:
-    sets = ["--set", f"axes.X.controller.Kp_normalized={velocity['Kp']!r}", "--set",
+    sets = ["--set", f"axes.X.controller.Kp_normalized={velocity['Kp_normalized']!r}", "--set",
             f"axes.X.controller.Ti={velocity['Ti']!r}", "--set", f"axes.X.controller.Kv={position['Kv']!r}"]
     return run_json("margins", model, *sets, exit_code=0)
 

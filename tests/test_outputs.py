@@ -278,7 +278,7 @@ def test_tune_write_keeps_comments_and_units_and_loads_with_the_tuned_gains(mode
     ctrl = got.axes["X"].controller
     # written in the line's unit with 15 significant digits, read back with 15 (units.parse_quantity):
     # relative error below 1e-14; 1e-13 leaves room for the unit factor's roundings
-    assert ctrl.Kp_normalized == pytest.approx(payload["velocity"]["Kp"], rel=1e-13)
+    assert ctrl.Kp_normalized == pytest.approx(payload["velocity"]["Kp_normalized"], rel=1e-13)
     assert ctrl.Ti == pytest.approx(payload["velocity"]["Ti"], rel=1e-13)
     assert ctrl.Kv == pytest.approx(payload["position"]["Kv"], rel=1e-13)
     before = load_model(model)

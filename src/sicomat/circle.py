@@ -99,7 +99,9 @@ class CircleResult:
                 "servo_mismatch_time": self.servo_mismatch_time,
                 "lsc_center": list(self.lsc_center), "lsc_radius": self.lsc_radius,
                 "center": list(self.center), "radius": self.radius, "clockwise": self.clockwise,
-                "feed": self.feed, "samples": int(self.angle.size)}
+                "feed": self.feed, "samples": int(self.angle.size),
+                "radius_mm": self.radius * 1e3,
+                "feed_mm_min": None if self.feed is None else self.feed * 6e4}
 
     def plot(self, magnification: float | None = None):
         """Polar plot of the radial deviation, magnified, as a ballbar report shows it; returns the Figure."""

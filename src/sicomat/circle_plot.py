@@ -37,13 +37,16 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
     """Ballbar-style polar plot: nominal circle, radial deviation magnified, figures in the title.
 
     The nominal circle is drawn at unit radius and a deviation ``F`` at ``1 + magnification·F/R``;
-    the rings are labelled in µm of deviation. By default the magnification makes the largest
-    deviation a quarter of the radius.
+    the rings are labelled in µm of deviation. By default the magnification is the 1-2-5 value that draws
+    the largest deviation at 8–20 % of the radius (:func:`sicomat.plotting.auto_magnification`); the
+    factor is in the title and the legend.
     """
+    from .plotting import auto_magnification
+
     dev, radius = result.radial_deviation, result.radius
     peak = float(np.max(np.abs(dev))) if dev.size else 0.0
     if magnification is None:
-        magnification = 0.25 * radius / peak if peak > 0 else 1.0
+        magnification = auto_magnification(peak, radius)
     scale = magnification / radius                         # plot units per metre of deviation
     order = np.argsort(result.angle)
     theta = np.append(result.angle[order], result.angle[order][0] + 2 * math.pi)
@@ -52,7 +55,7 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
     ax = fig.add_subplot(projection="polar")
     circle = np.linspace(0, 2 * math.pi, 361)
     ax.plot(circle, np.ones_like(circle), color="gray", linestyle="--", linewidth=0.8, label="nominal")
-    ax.plot(theta, rho, color="tab:blue", linewidth=1.0, label=f"actual (deviation ×{magnification:.3g})")
+    ax.plot(theta, rho, color="tab:blue", linewidth=1.0, label=f"actual (deviation ×{magnification:g})")
     span = max(peak, 1e-12)
     step = _nice_step(span)
     count = int(math.ceil(span / step))
@@ -67,7 +70,7 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
                         fontsize=7, color="tab:red")
     direction = "CW" if result.clockwise else "CCW"
     feed = f", F = {result.feed * 60e3:.4g} mm/min" if result.feed else ""
-    ax.set_title(f"Circle test R = {radius * 1e3:.4g} mm, {direction}{feed}\n"
+    ax.set_title(f"Circle test R = {radius * 1e3:.4g} mm, {direction}{feed}, deviation drawn ×{magnification:g}\n"
                  f"circular deviation G = {result.circular_deviation * 1e6:.3g} µm, "
                  f"F min/max = {result.radial_deviation_min * 1e6:.3g} / {result.radial_deviation_max * 1e6:.3g} µm\n"
                  f"mean radial deviation {result.mean_radial_deviation * 1e6:.3g} µm, servo mismatch "

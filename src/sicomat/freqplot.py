@@ -162,7 +162,7 @@ def nichols_figure(frfs: FrequencyResponse | Sequence[FrequencyResponse],
                 if level == main:
                     ax.annotate(f"PM {pm:g}°", (level + pm, 1.0), xycoords=("data", "axes fraction"),
                                 xytext=(2, -3), textcoords="offset points", ha="left", va="top",
-                                fontsize=7, color="0.4", rotation=90)
+                                fontsize=7, color="0.4", rotation=90, gid="pm-grid-label")
     ax.axhline(0.0, color="black", linewidth=0.6, linestyle=":")
     ax.set_xlim(x_lo, x_hi)
     ax.set_ylim(y_lo, y_hi)
@@ -173,10 +173,34 @@ def nichols_figure(frfs: FrequencyResponse | Sequence[FrequencyResponse],
     if any(frf.name for frf in frfs):
         ax.legend(fontsize=8, loc="upper left")
     fig.suptitle(title or "Nichols chart", fontsize=10)
+    _declutter(fig, ax)
     return fig
 
 
 # ---------------------------------------------------------------------------------------- helpers
+_LABEL_BOX = {"boxstyle": "square,pad=0.1", "facecolor": "white", "edgecolor": "none", "alpha": 0.8}
+_LABEL_PRIORITY = ("margin-label", "pm-grid-label", "m-circle-label")
+
+
+def _declutter(fig: "Figure", ax: "Axes") -> None:
+    """Hide every label that would overlap a more important one (margins first, then the phase-margin
+    grid, then the M-circles' levels), measured once the layout is done; the curves stay whole."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    fig.draw_without_rendering()
+    renderer = canvas.get_renderer()
+    texts = [t for t in ax.texts if t.get_gid() in _LABEL_PRIORITY and t.get_visible()]
+    texts.sort(key=lambda t: _LABEL_PRIORITY.index(t.get_gid()))
+    kept = []
+    for text in texts:
+        box = text.get_window_extent(renderer)
+        if any(box.overlaps(other) for other in kept):
+            text.set_visible(False)
+        else:
+            kept.append(box)
+
+
 def _figure(**kwargs) -> "Figure":
     from matplotlib.figure import Figure
 
@@ -328,7 +352,10 @@ def _m_circles(ax: "Axes", x_lo: float, x_hi: float, y_lo: float, y_hi: float) -
     t_db = np.where(np.isfinite(t_db), t_db, 100.0)
     contours = ax.contour(phi, g, t_db, levels=list(M_CIRCLES_DB), colors="0.55", linewidths=0.6,
                           zorder=1)
-    ax.clabel(contours, fmt={level: f"{level:g} dB" for level in M_CIRCLES_DB}, fontsize=6, inline=True)
+    labels = ax.clabel(contours, fmt={level: f"{level:g} dB" for level in M_CIRCLES_DB}, fontsize=6, inline=False)
+    for label in labels:
+        label.set_bbox(_LABEL_BOX)
+        label.set_gid("m-circle-label")
 
 
 def _mark_nichols(ax: "Axes", frf: FrequencyResponse, m: "Margins", shift: float, color) -> None:
@@ -344,10 +371,12 @@ def _mark_nichols(ax: "Axes", frf: FrequencyResponse, m: "Margins", shift: float
     if np.isfinite(m.gain_crossover_rad_s):
         phi = float(_interp_log(frf, phase, m.gain_crossover_rad_s))
         ax.plot([phi - m.phase_margin_deg, phi], [0.0, 0.0], color=color, linewidth=2.2, zorder=4)
-        ax.annotate(f"PM {m.phase_margin_deg:.3g}°", (phi, 0.0), xytext=(4, 4),
-                    textcoords="offset points", fontsize=8, color=color)
+        ax.annotate(f"PM {m.phase_margin_deg:.3g}°", (phi - 0.5 * m.phase_margin_deg, 0.0), xytext=(0, 5),
+                    textcoords="offset points", ha="center", va="bottom", fontsize=8, color=color,
+                    bbox=_LABEL_BOX, zorder=6, gid="margin-label")
     if np.isfinite(m.phase_crossover_rad_s) and np.isfinite(m.gain_margin_db):
         level = float(_nearest_level(_interp_log(frf, phase, m.phase_crossover_rad_s)))
         ax.plot([level, level], [-m.gain_margin_db, 0.0], color=color, linewidth=2.2, zorder=4)
-        ax.annotate(f"GM {m.gain_margin_db:.3g} dB", (level, -m.gain_margin_db), xytext=(4, -10),
-                    textcoords="offset points", fontsize=8, color=color)
+        ax.annotate(f"GM {m.gain_margin_db:.3g} dB", (level, -0.5 * m.gain_margin_db), xytext=(5, 0),
+                    textcoords="offset points", ha="left", va="center", fontsize=8, color=color,
+                    bbox=_LABEL_BOX, zorder=6, gid="margin-label")

@@ -12,6 +12,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import pandas
 
     from .mechanics import Mechanics
+    from .progress import ProgressCallback
 
 __all__ = ["Mode", "ModalResult", "modal_analysis"]
 
@@ -140,8 +141,11 @@ class ModalResult:
         return plot_modes(self, max_modes=max_modes)
 
 
-def modal_analysis(mech: "Mechanics") -> ModalResult:
+def modal_analysis(mech: "Mechanics", *, progress: "ProgressCallback | None" = None) -> ModalResult:
     """Natural frequencies, damping ratios and mode shapes of a lumped mechanics.
+
+    ``progress`` (:mod:`sicomat.progress`) is told the four phases (undamped modes, poles, matching,
+    participation); on a few thousand bodies the poles take most of the time.
 
     Undamped: the generalized symmetric eigenproblem ``K φ = ω² M φ`` solved on the M-orthogonal
     complement of the rigid-body motions, which are found from the couplings' geometry and
@@ -156,12 +160,20 @@ def modal_analysis(mech: "Mechanics") -> ModalResult:
     >>> [round(float(f) * 2 * 3.141592653589793, 6) for f in res.undamped_hz]
     [0.0, 2.0]
     """
+    from .progress import notify
+
     n = mech.n
     M, D = mech.mass, mech.damping
+    task = f"modal analysis of {n} bodies"
+    notify(progress, task, 0, 4)
     omega, shapes, r = _undamped(mech)
+    notify(progress, task, 1, 4)
     poles, vectors = np.linalg.eig(mech.state_space().A)
+    notify(progress, task, 2, 4)
     freq, zeta, damped = _match_poles(shapes, omega, r, poles, vectors[:n], M, D)
+    notify(progress, task, 3, 4)
     participation = _participation(mech, shapes, omega, r)
+    notify(progress, task, 4, 4)
 
     modes = []
     for i in range(n):

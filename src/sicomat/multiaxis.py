@@ -21,6 +21,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .circle import CircleResult
     from .model import Machine
     from .path import Path, PathSamples
+    from .progress import ProgressCallback
     from .timeseries import TimeSeries
 
 __all__ = ["PathRun", "CircleTest", "axis_for", "with_feedforward", "simulate_path", "circle_test", "axes_verdict",
@@ -85,8 +86,9 @@ class PathRun:
             cols[f"{name}.actual"] = self.actual[:, k]
         return pd.DataFrame(cols, index=pd.Index(self.time, name="time"))
 
-    def plot(self, magnification: float = 1.0):
-        """The path and the actual trace in the plane, and the contour error against time."""
+    def plot(self, magnification: float | None = None):
+        """The path and the actual trace in the plane (the deviation magnified: automatic by default),
+        and the contour error against time."""
         from .plotting import plot_path_run
 
         return plot_path_run(self, magnification)
@@ -165,8 +167,9 @@ def with_feedforward(machine: "Machine", mode: str | None) -> "Machine":
 
 
 def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float = 0.05,
-                  nonlinear: bool = True) -> PathRun:
-    """Simulate every axis of the machine that the interpolated path moves, and join the traces.
+                  nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> PathRun:
+    """Simulate every axis of the machine that the interpolated path moves, and join the traces;
+    ``progress`` (:mod:`sicomat.progress`) follows each axis's simulation.
 
     Raises
     ------
@@ -192,7 +195,7 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
         loop = build_servo_loop(machine, mapping[name])
         setpoint = samples.axis_setpoint(k)
         try:
-            series = simulate(loop, setpoint, duration, nonlinear=nonlinear)
+            series = simulate(loop, setpoint, duration, nonlinear=nonlinear, progress=progress)
         except SimulationDiverged as exc:
             error = SimulationDiverged(f"axis {mapping[name]}: {exc}", time=exc.time, step=exc.step)
             error.axis = mapping[name]
@@ -221,7 +224,7 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
 def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bool = False,
                 feedforward: str | None = None, max_acceleration: float | None = None,
                 max_jerk: float | None = None, axes: tuple[str, str] = ("x", "y"),
-                nonlinear: bool = True) -> CircleTest:
+                nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> CircleTest:
     """Simulate the ballbar circle (lead-in arc, 360° evaluated at constant feed, lead-out arc).
 
     Parameters
@@ -242,6 +245,8 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
         The two path axes (machine axes of the same names).
     nonlinear : bool
         ``False`` simulates the linear loops (no friction, limits or quantization).
+    progress : callable, optional
+        Follows the axes' simulations (:mod:`sicomat.progress`).
     """
     from .circle import evaluate_circle
     from .path import circle_test_path, interpolate
@@ -273,7 +278,7 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
     from .simulate.kernel import SimulationDiverged
 
     try:
-        run = simulate_path(machine, samples, nonlinear=nonlinear)
+        run = simulate_path(machine, samples, nonlinear=nonlinear, progress=progress)
     except SimulationDiverged as exc:
         return CircleTest(run=None, circle=None, verdict=verdict.with_warnings(
             [f"{exc}", "no circle figures: an axis diverged"], unstable=True), **about)

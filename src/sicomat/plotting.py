@@ -11,7 +11,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from .modal import ModalResult
 
-__all__ = ["plot_modes", "plot_timeseries", "plot_path_run", "plot_step", "save_figure"]
+__all__ = ["plot_modes", "plot_timeseries", "plot_path_run", "plot_step", "save_figure", "signal_unit",
+           "auto_magnification", "magnified_trace"]
 
 
 def _figure(**kwargs) -> "Figure":
@@ -40,8 +41,15 @@ def plot_modes(result: "ModalResult", max_modes: int = 8) -> "Figure":
         ax.set_title(f"mode {k + 1}: {title}", fontsize=9)
         ax.set_xticks(positions, result.dofs, rotation=45, ha="right", fontsize=8)
         ax.set_ylim(-1.1, 1.1)
+        if k % cols == 0:
+            ax.set_ylabel("amplitude (largest = 1)", fontsize=8)
     for ax in axes[len(modes):]:
         ax.set_visible(False)
+    from matplotlib.patches import Patch
+
+    fig.legend(handles=[Patch(color="tab:blue", label="moves with the largest component (+)"),
+                        Patch(color="tab:orange", label="moves against it (−)")],
+               loc="outside lower center", ncols=2, fontsize=8, frameon=False)
     f_meca = result.f_meca_hz
     suffix = f" — suggested f_meca = {f_meca:.4g} Hz" if f_meca else ""
     fig.suptitle(f"Mode shapes{suffix}", fontsize=10)
@@ -56,7 +64,8 @@ def plot_timeseries(series, signals=None) -> "Figure":
         axes = fig.subplots(len(signals), 1, sharex=True, squeeze=False)[:, 0]
         for ax, name in zip(axes, signals):
             ax.plot(t, series[name], linewidth=1.0)
-            ax.set_ylabel(name, fontsize=8)
+            unit = signal_unit(name, series.info.get("effort_unit"))
+            ax.set_ylabel(f"{name} ({unit})" if unit else name, fontsize=8)
             ax.grid(True, alpha=0.3)
         axes[-1].set_xlabel("time (s)")
         return fig
@@ -72,7 +81,8 @@ def plot_timeseries(series, signals=None) -> "Figure":
     ax2.set_ylabel("following error (µm)")
     ax3.plot(t, series["effort.command"], linewidth=1.0, label="command")
     ax3.plot(t, series["drive.effort"], linewidth=0.8, label="drive")
-    ax3.set_ylabel("force / torque")
+    effort = series.info.get("effort_unit")
+    ax3.set_ylabel({"N": "force (N)", "N·m": "torque (N·m)"}.get(effort, "force (N) / torque (N·m)"))
     ax3.legend(fontsize=8)
     ax3.set_xlabel("time (s)")
     for ax in (ax1, ax2, ax3):
@@ -80,16 +90,82 @@ def plot_timeseries(series, signals=None) -> "Figure":
     return fig
 
 
-def plot_path_run(run, magnification: float = 1.0) -> "Figure":
-    """The programmed and actual paths in the plane (the deviation magnified) and the contour error."""
+def _signal_units() -> dict[str, str]:
+    return {".x": "m", ".v": "m/s", ".theta": "rad", ".omega": "rad/s", ".force": "N", ".torque": "N·m",
+            ".current": "A", ".position": "m", ".velocity": "m/s", "_error": "m"}
+
+
+def signal_unit(name: str, effort_unit: str | None = None) -> str | None:
+    """The SI unit of a named signal (``load.x``: m, ``drive.current``: A, ``drive.effort``: N or N·m),
+    ``None`` when the name does not tell (a raw sensor output is in its sensor's units)."""
+    if name.startswith("sensor."):
+        return None
+    if name.endswith(".effort") or name.endswith(".command") and name.startswith("effort"):
+        return effort_unit
+    return next((unit for end, unit in _signal_units().items() if name.endswith(end)), None)
+
+
+def auto_magnification(deviation: float, size: float, fraction: float = 0.2) -> float:
+    """The magnification that draws a largest ``deviation`` at most ``fraction`` of the path's ``size``,
+    rounded down to 1, 2 or 5 × 10^k (so the drawn deviation is 8–20 % of the size by default); 1 when
+    there is no deviation, no size, or the deviation is already visible."""
+    import math
+
+    if not (deviation > 0 and size > 0 and math.isfinite(deviation) and math.isfinite(size)):
+        return 1.0
+    raw = fraction * size / deviation
+    if raw <= 1.0:
+        return 1.0
+    exp = math.floor(math.log10(raw))
+    return max(m * 10.0 ** exp for m in (1, 2, 5) if m * 10.0 ** exp <= raw)
+
+
+def magnified_trace(setpoint, actual, magnification: float):
+    """The actual trace with its distance to the programmed one magnified: each actual point is moved
+    away from its foot on the setpoint polyline (the nearest point of the nearest segment) by
+    ``magnification``; a lag along the path is not magnified. The setpoint samples are dense (one per
+    position period), so the polyline is the path to within its chords' sagitta."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    sp, act = np.asarray(setpoint, dtype=float), np.asarray(actual, dtype=float)
+    if magnification == 1.0 or len(sp) < 2:
+        return act
+    nearest = cKDTree(sp).query(act)[1]
+    best = np.full(len(act), np.inf)
+    foot = act.copy()
+    for lo in (nearest - 1, nearest):               # the segments before and after the nearest sample
+        lo = np.clip(lo, 0, len(sp) - 2)
+        a, b = sp[lo], sp[lo + 1]
+        ab = b - a
+        length2 = np.einsum("ij,ij->i", ab, ab)
+        t = np.clip(np.einsum("ij,ij->i", act - a, ab) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+        point = a + t[:, None] * ab
+        dist = np.linalg.norm(act - point, axis=1)
+        better = dist < best
+        best[better], foot[better] = dist[better], point[better]
+    return foot + magnification * (act - foot)
+
+
+def plot_path_run(run, magnification: float | None = None) -> "Figure":
+    """The programmed and actual paths in the plane (the deviation magnified) and the contour error.
+
+    The distance from the path (the contour error, not the lag along it) is drawn magnified
+    (:func:`magnified_trace`); by default (``magnification=None``) so that the largest contour error is
+    8–20 % of the path's size, half the diagonal of its bounding box (:func:`auto_magnification`). The
+    factor is in the legend and the title.
+    """
     import numpy as np
 
     fig = _figure(figsize=(10, 4.5), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.4]})
     sp, act = run.setpoint, run.actual
-    shown = sp + magnification * (act - sp)
+    if magnification is None:
+        size = 0.5 * float(np.linalg.norm(np.ptp(sp[:, :2], axis=0))) if len(sp) else 0.0
+        magnification = auto_magnification(run.max_contour_error, size)
+    shown = magnified_trace(sp, act, magnification)
     ax1.plot(sp[:, 0] * 1e3, sp[:, 1] * 1e3, label="programmed", linewidth=1.0)
-    ax1.plot(shown[:, 0] * 1e3, shown[:, 1] * 1e3, label=f"actual (deviation ×{magnification:g})", linewidth=0.9)
+    ax1.plot(shown[:, 0] * 1e3, shown[:, 1] * 1e3, label=f"actual (contour error ×{magnification:g})", linewidth=0.9)
     names = run.path.axis_names
     ax1.set_xlabel(f"{names[0]} (mm)")
     ax1.set_ylabel(f"{names[1]} (mm)")
@@ -100,7 +176,8 @@ def plot_path_run(run, magnification: float = 1.0) -> "Figure":
     ax2.set_xlabel("time (s)")
     ax2.set_ylabel("contour error (µm)")
     ax2.grid(True, alpha=0.3)
-    fig.suptitle(f"max contour error {run.max_contour_error * 1e6:.3g} µm", fontsize=10)
+    fig.suptitle(f"max contour error {run.max_contour_error * 1e6:.3g} µm; contour error drawn ×{magnification:g}",
+                 fontsize=10)
     return fig
 
 

@@ -20,9 +20,11 @@ import scipy.optimize
 
 from .errors import AnalysisError, ModelError
 from .looptf import LoopAnalysis, default_omega
+from .progress import notify
 
 if TYPE_CHECKING:  # pragma: no cover
     from .loop import ServoLoop
+    from .progress import ProgressCallback
 
 __all__ = ["TuningTargets", "TuningResult", "equivalent_delay", "rigid_velocity_pi", "rigid_position_gain",
            "tune_frequency"]
@@ -58,8 +60,10 @@ class Gains:
     Kv: float
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``tune --json`` shape: ``velocity: {Kp, Kp_si, Ti}``, ``position: {Kv}``."""
-        return {"velocity": {"Kp": self.Kp_normalized, "Kp_si": self.Kp, "Ti": self.Ti},
+        """The ``tune --json`` shape: ``velocity: {Kp, Kp_normalized, Ti}``, ``position: {Kv}``, named and
+        in the units of the model file's ``[controller]`` (``Kp`` physical; ``Kp_si``, the same value, is
+        deprecated)."""
+        return {"velocity": {"Kp": self.Kp, "Kp_normalized": self.Kp_normalized, "Kp_si": self.Kp, "Ti": self.Ti},
                 "position": {"Kv": self.Kv}}
 
 
@@ -269,8 +273,9 @@ def _quick_margins(omega: np.ndarray, L: np.ndarray) -> _Quick:
 class _Evaluator:
     """Cheap re-evaluation of both loops for trial gains (the plant parts are computed once)."""
 
-    def __init__(self, loop: "ServoLoop", n: int = 1200) -> None:
+    def __init__(self, loop: "ServoLoop", n: int = 1200, progress=None, task: str = "tuning") -> None:
         self.loop = loop
+        self.progress, self.task = progress, task
         self.an = LoopAnalysis.of(loop)
         self.omega_v = default_omega(loop, "velocity-open", n)
         self.omega_p = default_omega(loop, "position-open", n)
@@ -285,6 +290,7 @@ class _Evaluator:
 
     def velocity(self, kp: float, ti: float) -> _Quick:
         self.count += 1
+        notify(self.progress, self.task, self.count, None)
         return _quick_margins(self.omega_v, self.velocity_gain(kp, ti))
 
     def position_base(self, kp: float, ti: float) -> np.ndarray:
@@ -298,6 +304,7 @@ class _Evaluator:
 
     def position(self, base: np.ndarray, kv: float) -> _Quick:
         self.count += 1
+        notify(self.progress, self.task, self.count, None)
         return _quick_margins(self.omega_p, kv * base)
 
     def bandwidth(self, which: str, L: np.ndarray, kp: float, ti: float, kv: float) -> float | None:
@@ -312,8 +319,12 @@ class _Evaluator:
         return _finite(closed_loop_bandwidth(T, self.an.closed_loop_static_gain(which, kp, ti, kv)))
 
 
-def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, suggest_notch: bool = True) -> TuningResult:
+def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, suggest_notch: bool = True,
+                   progress: "ProgressCallback | None" = None) -> TuningResult:
     """Two-step automatic tuning (rigid closed form, then Nelder–Mead on the complete model).
+
+    ``progress`` (:mod:`sicomat.progress`) is told each evaluation of the complete model (the total
+    is not known in advance).
 
     Returns
     -------
@@ -335,7 +346,7 @@ def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, s
     kv0 = rigid_position_gain(m, kp0, ti0, tau, _position_equivalent_delay(loop),
                               targets.position_phase_margin, targets.position_crossover)
     initial = Gains(kp0, kp0 / m, ti0, kv0)
-    result = _refine(loop, targets, initial, tau, start)
+    result = _refine(loop, targets, initial, tau, start, progress)
     if suggest_notch and not result.targets_met:
         notch = _suggest_notch(loop, result)
         if notch is not None:
@@ -344,7 +355,8 @@ def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, s
             spec = FilterSpec(type="notch", frequency=notch["frequency_hz"], width=notch["width"], depth=notch["depth"])
             controller = loop.controller.model_copy(update={"current_filters": [*loop.controller.current_filters, spec]})
             notched = replace(loop, controller=controller)
-            again = _refine(notched, targets, initial, equivalent_delay(notched), time.perf_counter())
+            again = _refine(notched, targets, initial, equivalent_delay(notched), time.perf_counter(), progress,
+                            "tuning with the suggested notch")
             result = replace(result, notch=notch, with_notch=again)
     return replace(result, wall_time_s=time.perf_counter() - start)
 
@@ -367,8 +379,9 @@ def _check_targets(loop: "ServoLoop", t: TuningTargets) -> None:
                          path="--position-phase-margin", value=t.position_phase_margin)
 
 
-def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: float) -> TuningResult:
-    ev = _Evaluator(loop)
+def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: float, progress=None,
+            task: str = "tuning on the complete model") -> TuningResult:
+    ev = _Evaluator(loop, progress=progress, task=task)
     wv, pmv, gmin = targets.velocity_crossover, targets.velocity_phase_margin, targets.min_gain_margin
 
     def cost_velocity(x, gain_criterion: bool) -> float:

@@ -19,9 +19,11 @@ import numpy as np
 from .errors import AnalysisError
 from .frequency import zoh_matrices
 from .looptf import LoopAnalysis
+from .progress import notify
 
 if TYPE_CHECKING:  # pragma: no cover
     from .loop import ServoLoop
+    from .progress import ProgressCallback
 
 __all__ = ["TimeTargets", "StepResponse", "TimeTuningResult", "velocity_step", "position_step", "tune_time"]
 
@@ -139,7 +141,8 @@ class TimeTuningResult:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``sicomat tune --method time --json`` object."""
-        return {"method": "time", "velocity": {"Kp": self.Kp_normalized, "Kp_si": self.Kp, "Ti": self.Ti},
+        return {"method": "time", "velocity": {"Kp": self.Kp, "Kp_normalized": self.Kp_normalized, "Kp_si": self.Kp,
+                                                      "Ti": self.Ti},
                 "position": {"Kv": self.Kv},
                 "achieved": {"velocity_overshoot_percent": self.velocity.to_dict()["overshoot_percent"],
                              "velocity_rise_time": self.velocity.rise_time,
@@ -165,8 +168,10 @@ def _bisect(f, lo: float, hi: float, target: float, tol: float, record, max_iter
     return np.sqrt(lo * hi)
 
 
-def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuningResult:
-    """Run the three steps of the time approach automatically.
+def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None, *,
+              progress: "ProgressCallback | None" = None) -> TimeTuningResult:
+    """Run the three steps of the time approach automatically; ``progress`` (:mod:`sicomat.progress`)
+    is told each step response computed (the total is not known in advance).
 
     Raises
     ------
@@ -179,8 +184,11 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
     m = loop.m_rigid
     iterations: list[dict[str, Any]] = []
     notes: list[str] = []
+    count = [0]  # step responses computed, for the progress callback
 
     def v_overshoot(kp: float, ti: float) -> StepResponse:
+        count[0] += 1
+        notify(progress, "tuning by step responses", count[0], None)
         return velocity_step(an, kp, ti)
 
     # 1. Kp with Ti large, for ~10 % overshoot
@@ -188,7 +196,7 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
 
     def record_kp(kp, value):
         r = v_overshoot(kp, ti)
-        iterations.append({"step": "velocity Kp", "Kp": kp / m, "Kp_si": kp, "Ti": ti,
+        iterations.append({"step": "velocity Kp", "Kp": kp, "Kp_normalized": kp / m, "Kp_si": kp, "Ti": ti,
                            "overshoot_percent": value, "rise_time": r.rise_time})
 
     lo, hi = m * 1.0, m * 10.0
@@ -204,7 +212,7 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
 
     def record_ti(ti_, value):
         r = v_overshoot(kp, ti_)
-        iterations.append({"step": "velocity Ti", "Kp": kp / m, "Kp_si": kp, "Ti": ti_,
+        iterations.append({"step": "velocity Ti", "Kp": kp, "Kp_normalized": kp / m, "Kp_si": kp, "Ti": ti_,
                            "overshoot_percent": value, "rise_time": r.rise_time})
 
     # overshoot grows as Ti shrinks: bisect on 1/Ti
@@ -216,6 +224,8 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None) -> TimeTuni
 
     # 3. Kv for the desired position overshoot: the largest Kv that does not exceed it
     def p_overshoot(kv: float) -> float:
+        count[0] += 1
+        notify(progress, "tuning by step responses", count[0], None)
         return position_step(an, kp, ti, kv).overshoot_percent
 
     def record_kv(kv, value):

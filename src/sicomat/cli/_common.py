@@ -21,7 +21,7 @@ payload is still printed, with ``"stable": false``); 2 is bad input; warnings al
 SetOption = typer.Option(
     None, "--set", metavar="KEY=VALUE",
     help="Override a model parameter by key path for this run, units allowed "
-         "(e.g. --set axes.X.mechanics.bodies.load.mass='300 kg'). Repeatable.")
+         "(e.g. --set axes.X.controller.Kv=30, --set 'axes.X.drive.bandwidth=1.2 kHz'). Repeatable.")
 JsonOption = typer.Option(False, "--json", help="Print one JSON object on stdout instead of tables.")
 AxisOption = typer.Option(None, "--axis", help="Axis name (default: the first axis of the model).")
 PlotOption = typer.Option(None, "--plot", help="Write a figure to this file (.png, .svg or .pdf).",
@@ -69,8 +69,11 @@ def load(model: Path, overrides: Optional[List[str]]):
 
 def emit_json(payload: dict[str, Any]) -> None:
     """Write one JSON object to stdout; a non-finite number (an unstable loop's overshoot, a
-    missing margin) is written as ``null``: JSON has no infinity."""
-    sys.stdout.write(json.dumps(_finite(payload), indent=2, allow_nan=False) + "\n")
+    missing margin) is written as ``null``: JSON has no infinity. Keys follow the unit rule of
+    :mod:`.jsonkeys` (the SI name beside every deprecated SI-suffixed key)."""
+    from .jsonkeys import with_si_names
+
+    sys.stdout.write(json.dumps(_finite(with_si_names(payload)), indent=2, allow_nan=False) + "\n")
 
 
 def _finite(value: Any) -> Any:

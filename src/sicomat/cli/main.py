@@ -8,11 +8,26 @@ from typing import List, Optional
 import typer
 
 from ._common import AxisOption, JsonOption, PlotOption, SetOption, emit_json, exit_for, guarded, load
+from .progress import progress_bar
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="SICOMAT: simulation and control analysis of machine-tool feed axes.")
 
 ModelArgument = typer.Argument(..., help="Model file (TOML).", dir_okay=False)
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"sicomat {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", is_eager=True, callback=_print_version,
+                                       help="Print the version of sicomat and exit.")) -> None:
+    """SICOMAT: simulation and control analysis of machine-tool feed axes."""
 
 
 @app.command()
@@ -45,7 +60,8 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         name = machine.axis_name(axis)
-        result = modal_analysis(build_mechanics(machine.axes[name].mechanics))
+        with progress_bar() as progress:
+            result = modal_analysis(build_mechanics(machine.axes[name].mechanics), progress=progress)
         if plot is not None:
             from ..plotting import save_figure
 
@@ -75,6 +91,9 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
              feed: Optional[float] = typer.Option(None, "--feed", metavar="MM_PER_MIN",
                                                   help="Override the G-code feed rate (mm/min)."),
              linear: bool = typer.Option(False, "--linear", help="Drop limits, quantizers and Coulomb friction."),
+             magnification: Optional[float] = typer.Option(None, "--magnification",
+                                                           help="Scale of the contour error in the --gcode plot "
+                                                                "(default: automatic, shown on the plot)."),
              out: Optional[Path] = typer.Option(None, "--out", help="Write every signal to this CSV file.",
                                                 dir_okay=False),
              set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
@@ -84,15 +103,18 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         from ..loop import build_servo_loop
         from ..simulate import simulate as run_simulation
         from ..atomic import check_outputs
-        from .simulate_cmd import choose_profile, simulate_payload
+        from .simulate_cmd import check_magnification, choose_profile, simulate_payload
 
+        check_magnification(magnification)
         check_outputs({"--out": (out, "csv"), "--plot": (plot, "figure")},
                       {"the model file": model, "the G-code file (--gcode)": gcode})
         machine = load(model, set_)
         if gcode is not None:
             from .simulate_cmd import simulate_gcode
 
-            payload, run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear)
+            with progress_bar() as progress:
+                payload, run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear,
+                                              progress=progress)
             if run is not None and out is not None:
                 from ..timeseries import write_frame_csv
 
@@ -100,7 +122,7 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             if run is not None and plot is not None:
                 from ..plotting import save_figure
 
-                save_figure(run.plot(), plot)
+                save_figure(run.plot(magnification), plot)
             if json_:
                 emit_json(payload)
             else:
@@ -119,8 +141,9 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         profile, default_duration = choose_profile(machine.axes[loop.axis].trajectory, step, move,
                                                    max_velocity, max_acceleration)
         try:
-            series = run_simulation(loop, profile, duration if duration is not None else default_duration,
-                                    nonlinear=not linear)
+            with progress_bar() as progress:
+                series = run_simulation(loop, profile, duration if duration is not None else default_duration,
+                                        nonlinear=not linear, progress=progress)
         except SimulationDiverged as exc:
             from ..simulate import simulation_notes
 
@@ -148,8 +171,8 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 @app.command()
 def bode(model: Path = ModelArgument,
          loop: str = typer.Option("velocity-open", "--loop",
-                                  help="velocity-open|velocity-closed|position-open|position-closed|plant|"
-                                       "compliance|following-error|disturbance"),
+                                  help="One of: velocity-open, velocity-closed, position-open, position-closed, "
+                                       "plant, compliance, following-error, disturbance."),
          axis: Optional[str] = AxisOption, points: int = typer.Option(2000, "--points", min=10, max=200000),
          nichols: bool = typer.Option(False, "--nichols", help="Draw a Nichols chart instead of a Bode plot."),
          set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
@@ -250,7 +273,8 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         if method == "time":
             from ..tuning_time import TimeTargets, tune_time
 
-            result = tune_time(servo, TimeTargets(min_gain_margin=min_gain_margin))
+            with progress_bar() as progress:
+                result = tune_time(servo, TimeTargets(min_gain_margin=min_gain_margin), progress=progress)
             payload = result.to_dict()
             gains = {"Kp": result.Kp, "Kp_normalized": result.Kp_normalized, "Ti": result.Ti, "Kv": result.Kv}
             notch = None
@@ -262,7 +286,8 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                     position_phase_margin=None if position_crossover is not None
                                     else (position_phase_margin if position_phase_margin is not None else 80.0),
                                     position_crossover=position_crossover, min_gain_margin=min_gain_margin)
-            result = tune_frequency(servo, targets)
+            with progress_bar() as progress:
+                result = tune_frequency(servo, targets, progress=progress)
             chosen = result.with_notch if apply_notch and result.with_notch is not None else result
             payload = {"method": "frequency", **chosen.to_dict()}
             if chosen is not result:
@@ -314,7 +339,9 @@ def circle(model: Path = ModelArgument,
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
-        test = circle_test(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw, feedforward=feedforward)
+        with progress_bar() as progress:
+            test = circle_test(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw, feedforward=feedforward,
+                               progress=progress)
         payload = test.to_dict()
         if plot is not None:
             if test.circle is not None:
@@ -391,7 +418,9 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 @app.command()
 def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
          loop: str = typer.Option("velocity", "--loop", help="velocity or position"),
-         kp: Optional[float] = typer.Option(None, "--Kp", help="Velocity gain, normalised (1/s); default: the model's."),
+         kp: Optional[float] = typer.Option(None, "--Kp-normalized", "--Kp",
+                                            help="Velocity gain, normalised (1/s), as the model file's "
+                                                 "Kp_normalized; default: the model's. (--Kp is the old name.)"),
          ti: Optional[float] = typer.Option(None, "--Ti", help="Integral time (s); default: the model's."),
          kv: Optional[float] = typer.Option(None, "--Kv", help="Position gain (1/s); default: the model's."),
          duration: Optional[float] = typer.Option(None, "--duration", help="Length of the response (s)."),
@@ -422,8 +451,8 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
         verdict = loop_verdict(servo, Kp=Kp, Ti=Ti, Kv=Kv, an=an,
                                loops=("velocity",) if loop == "velocity" else ("velocity", "position"))
-        payload = {"axis": servo.axis, "loop": loop, "Kp": Kp / servo.m_rigid, "Kp_si": Kp, "Ti": Ti, "Kv": Kv,
-                   **response.to_dict(), **verdict.to_dict()}
+        payload = {"axis": servo.axis, "loop": loop, "Kp": Kp, "Kp_normalized": Kp / servo.m_rigid, "Kp_si": Kp,
+                   "Ti": Ti, "Kv": Kv, **response.to_dict(), **verdict.to_dict()}
         if plot is not None:
             from ..plotting import plot_step, save_figure
 
@@ -437,11 +466,23 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
             rise = "-" if response.rise_time is None else f"{response.rise_time * 1e3:.3g} ms"
             over = "-" if payload["overshoot_percent"] is None else f"{payload['overshoot_percent']:.3g} %"
-            Console(highlight=False).print(
-                f"{loop} loop, Kp = {payload['Kp']:.4g} 1/s, Ti = {Ti:.4g} s, Kv = {Kv:.4g} 1/s: "
-                f"overshoot {over}, rise time {rise}")
+            Console(highlight=False, soft_wrap=True).print(
+                f"{loop} loop, Kp_normalized = {payload['Kp_normalized']:.4g} 1/s, Ti = {Ti:.4g} s, "
+                f"Kv = {Kv:.4g} 1/s: overshoot {over}, rise time {rise}")
             print_verdict(payload, f"{loop} loop")
         exit_for(payload)
+
+
+@app.command()
+def version(json_: bool = JsonOption) -> None:
+    """The versions of sicomat, Python and the numerical libraries (for a bug report)."""
+    from .versions import versions
+
+    info = versions()
+    if json_:
+        emit_json(info)
+    else:
+        typer.echo(" ".join(f"{name} {value}" for name, value in info.items()))
 
 
 _LOOP_NAMES = ("plant", "velocity-open", "velocity-closed", "position-open", "position-closed",

@@ -6,7 +6,8 @@ from typing import Any
 
 from ..errors import ModelError
 
-__all__ = ["choose_profile", "simulate_payload", "diverged_payload", "STEP_FIGURES"]
+__all__ = ["choose_profile", "simulate_payload", "diverged_payload", "check_magnification",
+           "STEP_FIGURES"]
 
 STEP_FIGURES = ("overshoot_percent", "rise_time", "settling_time")
 """Figures of a settling step response: None (null) when the loop is unstable."""
@@ -40,6 +41,13 @@ def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration)
     return profile, profile.end_time + (0.2 if profile.kind != "ramp" else 0.3)
 
 
+def check_magnification(magnification: float | None) -> None:
+    """``--magnification`` must be a finite factor > 0 (or absent: automatic)."""
+    if magnification is not None and not 0.0 < magnification < float("inf"):
+        raise ModelError("expected a finite factor > 0 (or leave it out: automatic)", source="--magnification",
+                         value=magnification)
+
+
 def simulate_payload(series, verdict=None) -> dict[str, Any]:
     """The ``sicomat simulate --json`` object, with the run's ``stable`` verdict and ``warnings``
     (:func:`sicomat.simulate.checks.simulation_verdict`); an unstable loop has no step figures."""
@@ -64,7 +72,7 @@ def diverged_payload(loop, exc, verdict, notes) -> dict[str, Any]:
             "divergence_time": float(exc.time), **verdict.to_dict()}
 
 
-def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True):
+def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True, progress=None):
     """Parse a G-code file, interpolate it with the machine's interpolator, simulate the axes it moves.
 
     Returns the ``simulate --gcode --json`` object and the :class:`~sicomat.multiaxis.PathRun` (None
@@ -100,7 +108,7 @@ def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlin
     from ..simulate.kernel import SimulationDiverged
 
     try:
-        run = simulate_path(machine, samples, nonlinear=nonlinear)
+        run = simulate_path(machine, samples, nonlinear=nonlinear, progress=progress)
     except SimulationDiverged as exc:
         verdict = axes_verdict(machine, path.axis_names).with_warnings([str(exc)], unstable=True)
         return {"max_following_error": None, "rms_following_error": None, "final_error": None,

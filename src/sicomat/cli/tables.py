@@ -9,6 +9,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..modal import ModalResult
     from ..model import Machine
 
+from .layout import print_table
+
 __all__ = ["check_payload", "print_check", "print_modal", "print_verdict"]
 
 
@@ -34,8 +36,27 @@ def check_payload(machine: "Machine", mechanics: dict[str, "Mechanics"]) -> dict
         spec = machine.axes[name]
         for block in ("drive", "controller", "trajectory"):
             value = getattr(spec, block)
-            axes[name][block] = value.model_dump(mode="json", exclude_none=True) if value is not None else None
+            axes[name][block] = _with_hz(value.model_dump(mode="json", exclude_none=True)) if value is not None else None
     return {"valid": True, "name": machine.name, "axes": axes}
+
+
+# the model file's frequency-typed keys: values in Hz under a name without a suffix
+_MODEL_FILE_HZ = ("bandwidth", "frequency")
+
+
+def _with_hz(block: Any) -> Any:
+    """A model-file block as ``check --json`` echoes it: its own keys, and ``<key>_hz`` beside each
+    frequency the file holds in Hz (the JSON unit rule: an unsuffixed key is SI)."""
+    if isinstance(block, dict):
+        out = {}
+        for key, value in block.items():
+            out[key] = _with_hz(value)
+            if key in _MODEL_FILE_HZ and isinstance(value, (int, float)):
+                out[f"{key}_hz"] = value
+        return out
+    if isinstance(block, list):
+        return [_with_hz(v) for v in block]
+    return block
 
 
 def _stretch(mech: "Mechanics", vector) -> str:
@@ -75,7 +96,7 @@ def print_check(source: str, payload: dict[str, Any]) -> None:
             table.add_row("actuator", a["name"], a["applies"], a["kind"])
         for s in axis["sensors"]:
             table.add_row("sensor", s["name"], s["reads"], s["kind"])
-        console.print(table)
+        print_table(console, table)
         blocks = [f"{block}: {axis[block]['type']}" for block in ("drive", "controller", "trajectory")
                   if axis.get(block)]
         ctrl = axis.get("controller") or {}
@@ -102,14 +123,14 @@ def print_modal(axis: str, result: "ModalResult") -> None:
             table.add_row(str(k), f"{m.frequency_hz:.4f}", f"{m.damping_ratio:.3g}",
                           f"{m.damped_frequency_hz:.4f}", f"{m.undamped_hz:.4f}", m.dominant_dof,
                           f"{100 * m.participation:.1f} %")
-    console.print(table)
+    print_table(console, table)
     shapes = Table(title="mode shapes (largest component = 1)", title_justify="left")
     shapes.add_column("dof")
     for k in range(len(result.modes)):
         shapes.add_column(f"{k + 1}", justify="right")
     for d in result.dofs:
         shapes.add_row(d, *(f"{m.shape[d]:+.3f}" for m in result.modes))
-    console.print(shapes)
+    print_table(console, shapes)
     if result.f_meca_hz is not None:
         console.print(f"suggested f_meca = {result.f_meca_hz:.4g} Hz (first flexible mode the loop sees)")
 
@@ -148,7 +169,7 @@ def print_metrics(axis: str, payload: dict[str, Any]) -> None:
         value = payload[key]
         table.add_row(key, "-" if value is None else f"{value * scale:.4g} {unit}")
     console = Console(highlight=False)
-    console.print(table)
+    print_table(console, table)
     for note in payload.get("notes", []):
         console.print(f"note: {note}")
     print_verdict(payload)
@@ -179,7 +200,7 @@ def print_margins(axis: str, margins: dict[str, Any], note: str | None = None) -
                       f(m.gain_margin_db, "{:.1f}"), f(m.phase_crossover_rad_s, "{:.4g}"),
                       f(m.delay_margin_s * 1e3), f(m.modulus_margin), f(m.bandwidth_rad_s, "{:.4g}"),
                       str(len(m.gain_crossovers)))
-    console.print(table)
+    print_table(console, table)
 
 
 def print_tuning(axis: str, payload: dict[str, Any]) -> None:
@@ -193,12 +214,12 @@ def print_tuning(axis: str, payload: dict[str, Any]) -> None:
     if "initial" in payload:
         table.add_column("initial (rigid)", justify="right")
     table.add_column("tuned", justify="right")
-    rows = (("Kp (1/s, normalised)", ("velocity", "Kp")), ("Kp (SI)", ("velocity", "Kp_si")),
+    rows = (("Kp_normalized (1/s)", ("velocity", "Kp_normalized")), ("Kp (SI)", ("velocity", "Kp")),
             ("Ti (s)", ("velocity", "Ti")), ("Kv (1/s)", ("position", "Kv")))
     for label, (group, key) in rows:
         cells = [f"{payload['initial'][group][key]:.5g}"] if "initial" in payload else []
         table.add_row(label, *cells, f"{payload[group][key]:.5g}")
-    console.print(table)
+    print_table(console, table)
     achieved = payload.get("achieved", {})
     for key, value in achieved.items():
         if key in ("unmet",) or value is None:
@@ -227,7 +248,7 @@ def print_circle(payload: dict[str, Any]) -> None:
     table.add_row("servo_mismatch_angle", f"{payload['servo_mismatch_angle_deg']:.1f}°")
     for spike in payload["reversal_spikes"]:
         table.add_row(f"reversal spike {spike['quadrant_deg']:g}° ({spike['axis']})", f"{spike['height'] * 1e6:.3f} µm")
-    Console(highlight=False).print(table)
+    print_table(Console(highlight=False), table)
 
 
 def print_path(payload: dict[str, Any]) -> None:
@@ -243,7 +264,7 @@ def print_path(payload: dict[str, Any]) -> None:
     for name, axis in payload["axes"].items():
         table.add_row(f"{name} ({axis['machine_axis']})", f"{axis['max_following_error'] * 1e6:.4g}",
                       f"{axis['rms_following_error'] * 1e6:.4g}", f"{axis['final_error'] * 1e6:.4g}")
-    Console(highlight=False).print(table)
+    print_table(Console(highlight=False), table)
 
 
 def print_reduction(payload: dict[str, Any]) -> None:

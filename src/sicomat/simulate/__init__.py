@@ -10,10 +10,12 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..errors import ModelError
+from ..progress import notify
 from ..timeseries import TimeSeries, step_metrics
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..loop import ServoLoop
+    from ..progress import ProgressCallback
     from ..setpoints import Profile
 
 __all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs"]
@@ -60,7 +62,8 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: fl
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
 
 
-def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True) -> TimeSeries:
+def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True,
+             progress: "ProgressCallback | None" = None) -> TimeSeries:
     """Simulate the closed loop following a setpoint profile.
 
     Parameters
@@ -73,6 +76,9 @@ def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinea
         Simulated time (s); the step is the velocity-loop period.
     nonlinear : bool
         ``False`` drops limits, quantizers and Coulomb friction (the linear loop).
+    progress : callable, optional
+        Told the phases (:mod:`sicomat.progress`): loading (or, the first time, compiling) the
+        kernel, the steps (reported when the compiled run, one call, returns), the signals.
 
     Returns
     -------
@@ -89,16 +95,26 @@ def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinea
     from .kernel import run
 
     program, n_steps = loop_program(loop, profile, duration, nonlinear=nonlinear)
+    notify(progress, "loading the simulation kernel (compiled on first use)", 0, None)
     run(program, 2)  # loads (or compiles) the kernel, so that only the simulation itself is timed
+    task = f"simulating axis {loop.axis}: {n_steps} steps"
+    notify(progress, task, 0, n_steps)
     start = _time.perf_counter()
     result = run(program, n_steps)
     wall = _time.perf_counter() - start
+    notify(progress, task, n_steps, n_steps)
     signals = named_signals(loop, program, result.records, profile.evaluate(result.time)[0], result.states)
     actual = signals["setpoint.fine"] - signals["following_error"]
     metrics = step_metrics(result.time, signals["setpoint.fine"], actual, profile.distance, start=profile.breaks[0])
     return TimeSeries(time=result.time, signals=signals, metrics=metrics,
                       info={"wall_time_s": wall, "samples": n_steps, "step": loop.base_period,
-                            "axis": loop.axis, "notes": simulation_notes(loop, nonlinear)})
+                            "axis": loop.axis, "notes": simulation_notes(loop, nonlinear),
+                            "effort_unit": effort_unit(loop)})
+
+
+def effort_unit(loop: "ServoLoop") -> str:
+    """The unit of the drive's effort: ``"N"`` for a force actuator, ``"N·m"`` for a torque one."""
+    return "N" if loop.mechanics.actuator(loop.actuator).kind == "translational" else "N·m"
 
 
 def simulation_notes(loop: "ServoLoop", nonlinear: bool = True) -> list[str]:
@@ -148,12 +164,14 @@ class BatchMetrics:
 
 
 def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
-                   nonlinear: bool = True) -> BatchMetrics:
+                   nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> BatchMetrics:
     """Simulate many variants of one loop (other gains, masses, stiffnesses, limits, ...) in one
     compiled call and return each variant's following-error figures.
 
     The variants must share the loop's structure (same blocks, sample periods, delays, filters
     and friction links); only numbers may differ. Only the following error is recorded.
+    With ``progress`` (:mod:`sicomat.progress`) the variants run in about twenty compiled calls
+    instead of one, each reported when it returns (the figures are the same: variants are independent).
     """
     from .kernel import run_batch
 
@@ -161,13 +179,21 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: f
     sensors = [f"sensor.{loop.controller.position_sensor}" for loop in loops]
     if len(set(sensors)) != 1:
         raise ModelError("the variants of a batch must share their position sensor", path="controller.position_sensor")
+    chunk = len(programs) if progress is None else max(1, -(-len(programs) // 20))
+    task = f"simulating {len(programs)} variants: {n_steps} steps each"
+    notify(progress, task, 0, len(programs))
     start = _time.perf_counter()
-    result = run_batch(programs, n_steps, record=[sensors[0]], on_divergence="flag")
+    parts = []
+    for first in range(0, len(programs), chunk):
+        parts.append(run_batch(programs[first: first + chunk], n_steps, record=[sensors[0]], on_divergence="flag"))
+        notify(progress, task, min(first + chunk, len(programs)), len(programs))
     wall = _time.perf_counter() - start
+    result = parts[0]
+    records = np.concatenate([p.records for p in parts]) if len(parts) > 1 else result.records
     fine = profile.evaluate(result.time)[0]
     gains = np.array([loop.position_gain for loop in loops])
-    error = fine[None, :] - result.records[:, :, 0] / gains[:, None]
-    bad = result.diverged
+    error = fine[None, :] - records[:, :, 0] / gains[:, None]
+    bad = np.concatenate([p.diverged for p in parts]) if len(parts) > 1 else result.diverged
     with np.errstate(invalid="ignore"):
         figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]
     figures = [np.where(bad, np.nan, f) for f in figures]
