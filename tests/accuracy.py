@@ -28,18 +28,23 @@ def eigenvalue_accuracy(A, lam) -> np.ndarray:
     return A.shape[0] * EPS * np.linalg.norm(A, 2) * kappa[nearest]
 
 
-def transfer_accuracy(A, B, C, D, omega, inp: int = 0, out: int = 0) -> np.ndarray:
-    """Relative accuracy, per frequency, of ``H(jω) = C (jωI − A)⁻¹ B + D`` from a state space.
+def transfer_accuracy(A, B, C, D, points, inp: int = 0, out: int = 0) -> np.ndarray:
+    """Relative accuracy, per point, of ``H(s) = C (sI − A)⁻¹ B + D`` from a state space, at complex
+    ``points`` (s = jω for a continuous system, z = e^{jωT} for a sampled one).
 
-    A backward-stable LU solve of (jωI − A) x = B gives x to ``n·κ₂(jωI − A)·eps`` relative (the factor
-    n for the growth of the backward error with the order; it also covers rounding A itself when the
-    realisation is formed), and ``C x + D`` loses ``‖C‖‖x‖/|H|`` of it to cancellation where |H| is far
-    below ‖C‖‖x‖ (a closed loop above its resonances)."""
+    Two error sources, both normwise: forming the realisation (series, feedback and tf-to-ss products
+    round each entry of A relative to the largest operands, ‖δA‖ <= n·eps·‖A‖) and the LU solve of
+    (jωI − A) x = B (backward stable, the same form). To first order x moves by κ₂(jωI − A)·n·eps
+    relative, and ``C x + D`` loses ``‖C‖‖x‖/|H|`` of it to cancellation where |H| is far below
+    ‖C‖‖x‖ (a closed loop above its resonances). A componentwise (Skeel) bound would be sharper for the
+    solve alone but does not cover the rounding of A's formation, which is what python-control's
+    cascades are limited by (observed 1.1e-7 at 2 kHz, 1e5 times a componentwise solve bound). With
+    states in mixed units (m and m/s beside N/m ≈ 1e6) κ₂ makes the bound pessimistic, never invalid."""
     A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, C, D))
     n = A.shape[0]
-    bound = np.empty(len(omega))
-    for i, w in enumerate(omega):
-        M = 1j * w * np.eye(n) - A
+    bound = np.empty(len(points))
+    for i, point in enumerate(points):
+        M = point * np.eye(n) - A
         x = np.linalg.solve(M, B[:, inp])
         H = C[out] @ x + D[out, inp]
         bound[i] = n * np.linalg.cond(M) * EPS * np.linalg.norm(C[out]) * np.linalg.norm(x) / abs(H)
