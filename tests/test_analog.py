@@ -96,7 +96,7 @@ def test_continuous_current_filter_is_the_unwarped_transfer_function():
     for k in range(n):
         ref[k] = (Cx @ x)[0]
         x = Phi @ x + Gam[:, 0] * KV * (r[k] - ref[k])
-    assert np.max(np.abs(ours - ref)) <= 1e-9 * np.max(np.abs(ref))
+    assert np.max(np.abs(ours - ref)) <= 1e-9 * np.max(np.abs(ref))       # as the first test of this file
 
 
 def test_analog_signals_are_named_and_consistent():

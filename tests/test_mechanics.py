@@ -42,6 +42,7 @@ def test_chain_with_ground_spring_dampings_and_viscous_friction():
                                      viscous=visc, ground_stiffness=k0))
     K = np.array([[k0 + 10.0, -10.0, 0.0], [-10.0, 30.0, -20.0], [0.0, -20.0, 20.0]])
     D = np.array([[0.1 + 0.5, -0.1, 0.0], [-0.1, 0.3, -0.2], [0.0, -0.2, 0.2 + 0.7]])
+    # sums of two or three terms: a few eps (atol 1e-15 for the entries that cancel to 0)
     assert_allclose(mech.stiffness, K, rtol=1e-14, atol=0)
     assert_allclose(mech.damping, D, rtol=1e-14, atol=1e-15)
     assert_array_equal(np.diag(mech.mass), masses)
@@ -123,6 +124,7 @@ def test_belt_rack_reproduces_paper_eqs_5_to_9():
     M, mu, K = _paper_matrices(BELT_RACK)
     assert mech.dof_names == ("motor", "load")
     assert [d.kind for d in mech.dofs] == ["rotational", "translational"]
+    # the paper's closed forms, in another order: a few roundings (1e-14; 1e-13 for k/n_b²·R² products)
     assert_allclose(mech.mass, M, rtol=1e-14, atol=0)
     assert_allclose(mech.stiffness, K, rtol=1e-13, atol=0)
     assert_allclose(mech.damping, mu, rtol=1e-13, atol=0)

@@ -63,7 +63,7 @@ def test_override_with_toml_number_and_grams():
                           "axes.X.mechanics.bodies.scale_head.mass=12 g"])
     bodies = machine.axes["X"].mechanics.bodies
     assert bodies["load"].mass == 250.0
-    assert_allclose(bodies["scale_head"].mass, 0.012, rtol=1e-12)
+    assert_allclose(bodies["scale_head"].mass, 0.012, rtol=1e-12)          # "12 g" by pint: one rounding
 
 
 @pytest.mark.parametrize("item", ["axes.X.mechanics.bodies.load.mass=-3 kg",

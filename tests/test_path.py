@@ -51,6 +51,7 @@ def test_arc_direction(clockwise, sweep):
 
 def test_full_circle_and_three_axes():
     arc = Arc((R, 0.0, 0.01), (R, 0.0, 0.01), (0.0, 0.0), clockwise=True)
+    # 2πR in one product; points R·(cos, sin) with libm's <= 1 ulp: radius to a few eps (1e-15)
     assert_allclose(arc.length, 2 * math.pi * R, rtol=1e-15)
     pts = arc.point(np.linspace(0, arc.length, 9))
     assert_allclose(np.hypot(pts[:, 0], pts[:, 1]), R, rtol=1e-15)

@@ -74,7 +74,7 @@ def test_one_mass_plant_is_a_double_integrator():
     m = 2.5
     plant = mechanics_plant(build_mechanics(ChainSpec(type="chain", masses=[m])))
     assert_array_equal(plant.A, [[0.0, 1.0], [0.0, 0.0]])
-    assert_allclose(plant.B.ravel(), [0.0, 1.0 / m], rtol=1e-15)
+    assert_allclose(plant.B.ravel(), [0.0, 1.0 / m], rtol=1e-15)             # one quotient
     sys = plant.to_control()[0, 0]  # motor -> first
     # G(s) = 1/(m s^2): G(j w) = -1/(m w^2), and a double pole at 0
     for w in (0.1, 1.0, 30.0):
