@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import re
 import shutil
@@ -94,8 +95,14 @@ def test_license_is_an_spdx_expression_with_a_setuptools_that_reads_it():
     assert "setuptools>=77" in pyproject["build-system"]["requires"]
 
 
-def test_property_tests_are_deterministic():
+def _default_profile(request):
+    if request.config.getoption("hypothesis_profile", default=None) not in (None, "deterministic"):
+        pytest.skip("another hypothesis profile was chosen on the command line")
+
+
+def test_property_tests_are_deterministic(request):
     # the profile loaded by conftest.py: the same examples on every machine, no replay database
+    _default_profile(request)
     assert settings.default.derandomize is True
     assert settings.default.database is None
 
@@ -119,3 +126,14 @@ def test_ci_fails_when_tests_fail_or_none_ran(tmp_path, pytest_status, ci_fails)
     os.utime(stamp, (future, future))  # the stand-in venv is up to date: make does not reinstall
     result = subprocess.run(["bash", ".ci/run"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert (result.returncode != 0) == ci_fails, result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("module", ["test_margins", "test_mechanics", "test_reduction", "test_trajectory"])
+def test_every_property_test_draws_the_same_examples_everywhere(module, request):
+    # each @given test's own @settings inherit the profile: derandomized, no replay database
+    _default_profile(request)
+    tests = [f for f in vars(importlib.import_module(module)).values() if hasattr(f, "hypothesis")]
+    assert tests, f"{module} has no property test any more: update this list"
+    for test in tests:
+        chosen = test._hypothesis_internal_use_settings
+        assert chosen.derandomize is True and chosen.database is None, test.__name__
