@@ -348,6 +348,7 @@ def test_band_gramian_equals_integral_over_the_band():
     plant = plant_of(chain(4))
     split = spectral_split(plant, marginal=True)
     T, B = split.flexible.A, split.flexible.B
+    import scipy.integrate
     import scipy.linalg
 
     P = scipy.linalg.solve_continuous_lyapunov(T, -B @ B.T)
@@ -360,7 +361,7 @@ def test_band_gramian_equals_integral_over_the_band():
     # the trapezoid rule on 40001 points: error (Δω)²/12·max|f''| with Δω = 0.03 rad/s and the integrand's
     # resonances (width ζω ≳ 1 rad/s): <= 1e-7 relative; 1e-6. The whole axis reproduces P up to the Lyapunov
     # solve's rounding (~κ·eps, 1e-12) and the truncation at 1e12 rad/s (ω_max/1e12 ≈ 1e-9): 1e-9 of P
-    assert_allclose(P_band, np.trapezoid(integrand, w, axis=0), rtol=1e-6, atol=1e-8 * np.abs(P_band).max())
+    assert_allclose(P_band, scipy.integrate.trapezoid(integrand, w, axis=0), rtol=1e-6, atol=1e-8 * np.abs(P_band).max())
     # the whole axis gives back the ordinary Gramian
     S_all = band_gramian_operator(T, (0.0, 1e12))
     assert_allclose(S_all @ P + P @ S_all.T, P, rtol=1e-6, atol=1e-9 * np.abs(P).max())
