@@ -47,6 +47,10 @@ def test_equal_gains_give_the_first_order_radius_error_and_no_mismatch(clockwise
     kv = 30.0
     res = follower(clockwise, kv, kv)
     expected = -FEED ** 2 / (2 * kv ** 2 * R)       # amplitude R/sqrt(1 + (w/Kv)^2) ~ R (1 - w²/2Kv²)
+    # a first-order closed form in w/Kv (w = v/R = 1.67 rad/s): the next term is O((w/Kv)²) = 3e-3 relative;
+    # lsim interpolates the 2 ms samples linearly (error (wT)²/8 ≈ 1e-6) and the 180° lead-in lets the transient
+    # decay (e^(-Kv·1.9 s)): 1 %. With equal gains the figure is a circle: mismatch, G and spikes are rounding
+    # and the sampled-extremes error (< 1e-3 of the radius error)
     assert_allclose(res.mean_radial_deviation, expected, rtol=0.01)
     assert_allclose([res.radial_deviation_min, res.radial_deviation_max], expected, rtol=0.01)
     assert res.clockwise is clockwise
@@ -65,6 +69,9 @@ def test_gain_mismatch_gives_an_ellipse_at_45_degrees(clockwise):
     kv_x, kv_y = 30.0, 25.0
     res = follower(clockwise, kv_x, kv_y)
     expected_angle = 45.0 if clockwise else -45.0
+    # second order: the axes' amplitudes differ by R·w²(1/Kv_y² − 1/Kv_x²)/2, an axis-aligned ellipse of 1.7e-5
+    # m beside the 2.8e-4 m mismatch, which turns the major axis by atan(0.061)/2 = 1.7°: 2°; the amplitude and
+    # time to the first-order error O(w/Kv)·d and O((w/Kv)²) ≈ 1 %: 3 %; the mean radius and G 2 %
     assert_allclose(math.degrees(res.servo_mismatch_angle), expected_angle, atol=2.0)
     assert_allclose(res.servo_mismatch, FEED * (1 / kv_y - 1 / kv_x) / 2, rtol=0.03)
     assert_allclose(res.servo_mismatch_time, 1 / kv_y - 1 / kv_x, rtol=0.03)
@@ -78,6 +85,9 @@ def test_gain_mismatch_gives_an_ellipse_at_45_degrees(clockwise):
 def test_ellipse_amplitude_and_direction():
     e, tilt = 5e-6, math.radians(30.0)
     res = evaluate_circle(*polar(R + e * np.cos(2 * (THETA - tilt))), CENTER, R)
+    # synthetic data, a pure 2θ harmonic on 3600 uniform angles: the harmonic fit is exact by discrete
+    # orthogonality, up to rounding of 3600-term sums (1e-9); the extremes at 30° and 120° fall on the 0.1°
+    # grid, and the least-squares circle absorbs nothing of a 2θ term: rounding of the fit (1e-6)
     assert_allclose(res.servo_mismatch, e, rtol=1e-9)
     assert_allclose(res.servo_mismatch_angle, tilt, rtol=1e-9)
     assert_allclose(res.circular_deviation, 2 * e, rtol=1e-6)
@@ -89,6 +99,9 @@ def test_off_centre_circle_least_squares_centre():
     shift = np.array([4e-6, -3e-6])
     x, y = polar(R)
     res = evaluate_circle(x + shift[0], y + shift[1], CENTER, R)
+    # an exact circle: the least-squares centre and radius to the rounding of its Gauss–Newton sums (values ~0.1
+    # m: 1e-15 m is ~70 ulp); G = 0 up to that; F about the nominal centre is |shift| + O(shift²/R) plus the
+    # grid's sampling of a cos (Δθ²/2 = 1.5e-6): 1e-3
     assert_allclose(res.lsc_center, np.add(CENTER, shift), atol=1e-15)
     assert_allclose(res.lsc_radius, R, rtol=1e-12)
     assert res.circular_deviation < 1e-12                       # a true circle: G = 0
@@ -110,6 +123,10 @@ def test_reversal_spike_height_and_place(quadrant):
     spikes = res.reversal_spikes
     assert [s.quadrant_deg for s in spikes] == [0, 90, 180, 270]
     assert [s.axis for s in spikes] == ["x", "y", "x", "y"]
+    # a Gaussian spike (σ = 1°) over a background 4e-6·cos 2θ: the background's curvature over ±3σ is 2e-8 m,
+    # 0.7 % of h: 2 %; the spike sits on a grid point, the angle to 2 grid steps (0.2°); the other spikes are
+    # that background residue (< 2 % of h); the spike adds its 2θ harmonic, h·σ·√(2π)/π ≈ 1 % of the 4 µm
+    # mismatch: 2 %
     assert_allclose(spikes[k].height, h, rtol=0.02)
     assert_allclose(spikes[k].angle_deg, 90.0 * k, atol=0.2)
     assert all(abs(s.height) < 0.02 * h for i, s in enumerate(spikes) if i != k)

@@ -31,6 +31,8 @@ def test_modal_json_contract_on_two_mass_closed_form(tmp_path):
     payload = json.loads(result.stdout)
     expected = np.sqrt(k * (m1 + m2) / (m1 * m2)) / (2 * np.pi)
     assert payload["undamped_hz"][0] == 0.0
+    # through JSON (repr floats round-trip exactly): the SVD's value to a few eps (1e-12); the damped pole by
+    # dgeev after balancing to a few eps, with the mode matching and shape normalisation (1e-9): see test_modal
     np.testing.assert_allclose(payload["undamped_hz"][1], expected, rtol=1e-12)
     assert [m["frequency_hz"] for m in payload["modes"]] == sorted(m["frequency_hz"] for m in payload["modes"])
     flexible = payload["modes"][1]
@@ -58,6 +60,8 @@ def test_set_override_with_units_changes_the_result():
     # structure + secondary on 1e9 N/m: doubling the structure's mass lowers that mode by ~sqrt(2)
     f0 = np.sqrt(1e9 / (3667 + 232)) / (2 * np.pi)
     f1 = np.sqrt(1e9 / (7334 + 232)) / (2 * np.pi)
+    # a physical approximation: structure + secondary as one body on the 1e9 N/m ground spring, the rest of the
+    # axis (~360 kg on 3.8e8 N/m, ~5 times higher) shifts that mode by O(ω²/ω_other²) ≈ 1e-3: 2e-3
     np.testing.assert_allclose(base["undamped_hz"][1], f0, rtol=2e-3)
     np.testing.assert_allclose(changed["undamped_hz"][1], f1, rtol=2e-3)
 
@@ -184,6 +188,7 @@ def test_tune_json_contract_and_written_model(tmp_path):
     from sicomat import load_model
 
     written = load_model(tuned).axes["X"].controller
+    # floats round-trip through TOML and JSON exactly: 1e-12 is slack
     assert written.Kp_normalized == pytest.approx(payload["velocity"]["Kp_normalized"], rel=1e-12)
     assert written.Kv == pytest.approx(payload["position"]["Kv"], rel=1e-12)
 
@@ -214,6 +219,7 @@ def test_step_command_is_the_manual_time_approach(tmp_path):
     payload = json.loads(result.stdout)
     loop = build_servo_loop(sicomat_load(P5M4S))
     expected = velocity_step(LoopAnalysis.of(loop), 120 * loop.m_rigid, 0.02)
+    # the same computation in-process and through the CLI: rounding only
     assert payload["overshoot_percent"] == pytest.approx(expected.overshoot_percent, rel=1e-9)
     assert payload["Kp_normalized"] == pytest.approx(120.0)
     # with Ti large (the method's first step) a larger proportional gain gives more overshoot

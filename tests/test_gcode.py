@@ -34,6 +34,8 @@ def test_program_geometry_feeds_and_units():
     kinds = [type(s) for s in path.segments]
     assert kinds == [Line, Line, Arc, Arc]
     rapid, feed_line, circle, quarter = path.segments
+    # G-code values in mm scaled to m: one rounding each (default rtol 1e-7 is slack; 1e-15 absolute where
+    # stated, 1e-12 for sums of lengths with π); centres and sweeps from atan2 of exact points: <= 1 ulp
     assert_allclose(rapid.end, (0.05, 0.0, 0.0))
     assert_allclose(feed_line.end, (0.06, 0.0, 0.0))
     assert_allclose(circle.sweep, 2 * math.pi) and not circle.clockwise
@@ -49,6 +51,7 @@ def test_program_geometry_feeds_and_units():
 
 def test_modal_codes_persist_and_incremental_moves():
     path = parse_gcode("G91 G01 X10 F600\nY10\nX-10\nG90 X0 Y0", axes="XY")
+    # incremental moves: sums of scaled mm, a few roundings (pytest.approx's default 1e-6 is slack)
     assert [s.end for s in path.segments] == [
         pytest.approx((0.01, 0.0)), pytest.approx((0.01, 0.01)), pytest.approx((0.0, 0.01)),
         pytest.approx((0.0, 0.0))]
@@ -61,6 +64,7 @@ def test_start_position_zero_moves_and_lowercase():
     # line 1 does not move (skipped); line 2 moves from the start; the arc is a full circle CW
     assert len(path.segments) == 2
     assert path.segments[0].start == (0.0, 0.0, 0.002) and path.segments[0].end == (0.005, 0.0, 0.0)
+    # a full circle: atan2 of exact points, pytest.approx default
     assert path.segments[1].sweep == pytest.approx(-2 * math.pi)
     assert path.segments[1].center == pytest.approx((0.005, -0.005, 0.0))
 

@@ -84,10 +84,15 @@ def test_single_rate_linear_loop_matches_python_control():
 
     res = run(_closed_loop_program(h, r, ctrl, A, B, C), n)
     assert res.record_names == ("y1", "y2", "u")
+    # t_k = k h is one rounding: |error| <= eps·t_max/2 = 3.3e-16 for t <= 3 s
     assert_allclose(res.time, t, rtol=0, atol=1e-15)
     for i in range(3):
         scale = np.max(np.abs(expected[:, i]))
         assert scale > 0
+        # both sides discretise by expm (a few eps per step) and run 3000 steps of a stable loop; python-
+        # control's interconnect realises the loop in another basis, so the rounding is amplified by the
+        # realisations' conditioning: n·eps ≈ 7e-13 per unit of conditioning, 1e-9 of the signal's scale allows
+        # a conditioning of ~1e3
         assert_allclose(res.records[:, i], expected[:, i], rtol=0, atol=1e-9 * scale)
     assert_allclose(res.states[:, :2], expected[:, :2], rtol=0, atol=1e-9 * np.abs(expected).max())
 
@@ -109,7 +114,10 @@ def test_feedthrough_uses_the_input_held_over_the_previous_step():
         y.append(0.5 * x + 2.0 * u_prev)
         x = a * x + (1 - a) * uk
         u_prev = uk
+    # six steps of a scalar recurrence, a few roundings each, and exp(-h) by expm vs np.exp (<= 2 ulp): ~30 eps
+    # = 7e-15
     assert_allclose(res.records[:, 0], y, rtol=1e-13)
+    # a copied input: exact (default rtol irrelevant)
     assert_allclose(res.records[:, 1], u)
     assert_allclose(res.final_state, [x], rtol=1e-13)
 
@@ -155,6 +163,7 @@ def test_quantize_round_and_floor():
            p.Quantize(input=0, output=1, step=0.5, mode="round"),
            p.Quantize(input=0, output=2, step=0.5, mode="floor")]
     res = run(_ops_program(["x", "r", "f"], ops, x[None, :], (1, 2)), len(x))
+    # sums and delays of binary fractions: exact in floating point
     assert_allclose(res.records[:, 0], [-1.5, -0.5, 0.0, 0.0, 0.5, 0.5, 1.0, 2.5])
     assert_allclose(res.records[:, 1], [-1.5, -1.0, -0.5, 0.0, 0.0, 0.5, 1.0, 2.0])
 
@@ -199,10 +208,14 @@ def test_current_limit_against_hand_computed_bounds():
     lo, hi, lo2, hi2, lo3, hi3 = res.records.T
     for k, wk in enumerate(w):
         exp_lo, exp_hi = _current_limit_expected(wk, i_peak, u_max, R, ke, wl)
+        # the same quadratic, in closed form in the kernel and by np.roots (companion eigenvalues) here; its
+        # roots are simple, each with condition |r|/|r1 - r2| < 0.8 at these speeds, so both are accurate to a
+        # few eps: 1e-12 is ~4500 eps
         assert lo[k] == pytest.approx(exp_lo, rel=1e-12, abs=1e-12)
         assert hi[k] == pytest.approx(exp_hi, rel=1e-12, abs=1e-12)
     # at 250 rad/s the upper bound is voltage-limited: the voltage is exactly u_max there
     assert hi[2] < i_peak
+    # an identity of the root, a few eps × the root's condition (< 1): the default rel 1e-6 is loose on purpose
     assert (R * hi[2] + ke * 250) ** 2 + (wl * 250 * hi[2]) ** 2 == pytest.approx(u_max ** 2)
     # at 310 rad/s the back-EMF exceeds the supply: both bounds at the least-voltage current
     assert lo[4] == hi[4] == pytest.approx(-R * ke * 310 / (R ** 2 + (wl * 310) ** 2))
@@ -296,22 +309,36 @@ def test_stick_slip_matches_closed_form():
     assert len(starts) == len(events) and len(ends) == len(events)
     for (t0, t1), k0, k1 in zip(events, starts, ends):
         # stuck[k] describes [t_k, t_k+1): the first sliding step starts within one step of t0
+        # event times are quantised to the step h (stuck[k] is per step) plus half a step for the sub-step
+        # location
         assert abs(k0 * h - t0) <= 1.5 * h
         assert abs(k1 * h - t1) <= 1.5 * h
     # the trajectory itself: events are located to h / 2**levels; each breakaway overshoots the
     # static force by at most k V h / 2**levels, which delays the next cycles a little more
     error = np.abs(res.states[:, 1] - position(res.time)).max()
+    # error analysis: a breakaway is located to h/2**10 ≈ 1e-6 s; the slip then runs late by at most that, at
+    # most 0.12 m/s (V + A w): 1.2e-7 m per slip, ~5 slips in 7.5 s: 6e-7 m
     assert error < 1e-6                                       # (the stroke is 0.07 m)
     fine = run(_stick_slip_program(h, m, k, V, Fs, Fc), n, levels=14)
+    # that error is linear in the sub-step: 16 times finer must give at least 8 times smaller (factor 2 margin)
     assert np.abs(fine.states[:, 1] - position(fine.time)).max() < error / 8
     # friction: the holding force -k (p - x) while stuck, -Fc (against v > 0) while sliding
     ext = res.states[:, 0] - res.states[:, 1]
+    # the same holding force by another formula: rounding of k·(p - x) with |p|, |x| <= 0.1 m is <= k·eps·0.1 ≈
+    # 2e-15 N; 1e-12 N absolute, 1e-9 relative are slack
     assert_allclose(res.friction[stuck, 0], -k * ext[stuck], rtol=1e-9, atol=1e-12)
+    # a copied constant: exact
     assert_allclose(res.friction[~stuck, 0], -Fc)
+    # recorded forces are those after each step's events are resolved: <= Fs up to the rounding above (1e-9 N
+    # slack)
     assert np.all(np.abs(res.friction[:, 0]) <= Fs + 1e-9)
+    # a stick is located and the velocity zeroed at the event: only rounding of v ~ 0.1 m/s (1e-17) may go below
+    # 0
     assert np.all(res.states[~stuck, 2] >= -1e-9)                 # never slides backwards
+    # C x = p - x by the same operations: the rounding of a difference of <= 0.1 m values, 1.4e-17 m
     assert_allclose(res.records[:, 0], np.concatenate([[0.0], ext[1:]]), atol=1e-15)
     # the friction slot is written before the ops with the same acting force
+    # as the friction check above
     assert_allclose(res.records[1:, 1][stuck[1:]], -k * ext[1:][stuck[1:]], rtol=1e-9, atol=1e-12)
 
 
@@ -360,6 +387,8 @@ def _two_link_reference(m, k, V, Fs, Fc, t_end):
                 ev.direction = -1
             ev.terminal = True
             events.append(ev)
+        # the reference's own accuracy: DOP853 at rtol 1e-12 and event location to ~1e-12 s, far below the
+        # kernel's 1e-6 s event location, so the comparison below measures the kernel
         sol = solve_ivp(rhs, (t, t_end), y, events=events, rtol=1e-12, atol=1e-15,
                         dense_output=True, method="DOP853", max_step=0.01)
         pieces.append((t, sol.t[-1], sol.sol))
@@ -395,11 +424,15 @@ def test_two_coupled_friction_links_match_an_event_driven_reference():
     assert len(switches) >= 5                      # both links stick and slip, also together
     ref = state(res.time)
     error = np.abs(res.states[:, 1:3] - ref[:, 1:3]).max()
+    # as the single-link case: located to h/2**10, slips at ~0.1 m/s, twice as many switches (>= 5 per link
+    # pair): ~1e-6 m
     assert error < 2e-6                            # (strokes about 0.045 m)
     fine = run(_two_link_program(h, m, k, V, Fs, Fc), n, levels=14)
+    # 16 times finer sub-steps: at least 4 times smaller (the reference ODE solver's rtol 1e-12 stays far below)
     assert np.abs(fine.states[:, 1:3] - ref[:, 1:3]).max() < error / 4
     changes = np.flatnonzero(np.any(res.stuck[1:] != res.stuck[:-1], axis=1)) + 1
     assert len(changes) == len(switches)
+    # step quantisation plus half a step, as above
     assert_allclose(changes * h, switches, atol=1.5 * h)
 
 
@@ -421,15 +454,20 @@ def test_stick_projection_conserves_momentum_and_freezes_the_link():
         d = constrained_dynamics(cont, mask)
         xp = d.projection @ x
         stuck = [(mask >> j) & 1 for j in range(2)]
+        # the projection has an identity block on the positions: exact
         assert_allclose(xp[:n], x[:n])                          # positions unchanged
         for j in range(2):
             if stuck[j]:
+                # O(1) velocities through a solve with M (condition <= 3): rounding ~10 eps = 2e-15; 1e-12 slack
                 assert abs(g[j] @ xp[n:]) < 1e-12              # stuck links do not slide
+                # relative to the acceleration scale: rounding ~κ(G M⁻¹ Gᵀ)·eps ≈ 1e-15 (κ <= 10 here); 1e-9
+                # slack
                 assert abs(G[j] @ d.A @ x) < 1e-9 * np.abs(A @ x).max()
         # the momentum changes only along the stuck links' directions (impulses g_j * p_j)
         dp = M @ (xp[n:] - x[n:])
         gs = g[np.array(stuck, dtype=bool)]
         coef = np.linalg.lstsq(gs.T, dp, rcond=None)[0]
+        # an O(1) least-squares fit of an exact combination: residual ~κ(g)·eps ≈ 1e-15
         assert_allclose(gs.T @ coef, dp, atol=1e-12)
         # the holding force keeps the stuck links' accelerations at zero
         f_slip = np.array([0.0 if s else 1.0 for s in stuck])
@@ -437,6 +475,7 @@ def test_stick_projection_conserves_momentum_and_freezes_the_link():
         acc = A @ x + F @ (f_slip + lam)
         for j in range(2):
             if stuck[j]:
+                # as above: rounding relative to the acceleration scale
                 assert abs(G[j] @ acc) < 1e-9 * np.abs(A @ x).max()
             else:
                 assert lam[j] == 0.0
@@ -452,9 +491,13 @@ def test_discretisation_levels_are_exact_fractions():
     assert disc.Phi.shape == (2, 5, 4, 4) and disc.Gamma.shape == (2, 5, 4, 2)
     for lev in range(5):
         E = scipy.linalg.expm(np.block([[A, B, B], [np.zeros((2, 6))]]) * h / 2 ** lev)
-        assert_allclose(disc.Phi[0, lev], E[:4, :4], rtol=1e-12, atol=1e-14)
-        assert_allclose(disc.Gamma[0, lev], E[:4, 4:], rtol=1e-12, atol=1e-18)
+        # expm's error is normwise (a few eps of ||E||, scaling and squaring), not per entry: Gamma's
+        # entries (~h²/m) are compared at the scale of the whole block, as in the squaring test below
+        scale = np.abs(E[:4]).max()
+        assert_allclose(disc.Phi[0, lev], E[:4, :4], rtol=0, atol=1e-14 * scale)
+        assert_allclose(disc.Gamma[0, lev], E[:4, 4:], rtol=0, atol=1e-14 * scale)
     # stuck: the mass-1 velocity is frozen
+    # the frozen row is set exactly; 1e-15 is rounding of a unit entry
     assert_allclose(disc.Phi[1, 0][2], [0, 0, 1, 0], atol=1e-15)
 
 
@@ -482,6 +525,7 @@ def test_unstable_loop_raises_with_the_time():
     err = info.value
     assert isinstance(err, ArithmeticError) and isinstance(err, SicomatError)
     assert 0 < err.time < n * h
+    # the same product k·h, one rounding: default rel 1e-6 is slack
     assert err.time == pytest.approx((err.step + 1) * h)
 
 
@@ -496,9 +540,11 @@ def test_exponential_growth_stops_at_the_documented_limit():
     with pytest.raises(SimulationDiverged) as info:
         run(prog, 5000)
     t_cross = np.log(1e9 * (1 + np.exp(10 * h)))
+    # divergence is tested at step ends: the crossing is reported at the end of its step, within one step
     assert info.value.time == pytest.approx(np.ceil(t_cross / h) * h, abs=1.01 * h)
     with pytest.raises(SimulationDiverged):
         run(prog, 5000, divergence_limit=100.0)
+    # 100 multiplications by expm(h) = e^h (<= 2 ulp each): <= 200 eps = 4.4e-14
     assert run(prog, 100).final_state[0] == pytest.approx(np.e, rel=1e-12)
 
 
@@ -543,6 +589,7 @@ def test_batch_equals_single_runs():
         assert single.stuck.any() and not single.stuck.all()
     sub = run_batch(progs, n, record_every=7, record=["u", "y2"])
     assert sub.record_names == ("u", "y2")
+    # the same k·h: exact
     assert_allclose(sub.time, t[::7])
     for i, single in enumerate(singles):
         assert_array_equal(sub.records[i], single.records[::7][:, [2, 1]])
@@ -577,6 +624,8 @@ def test_bare_loop_matches_numpy():
     x[0] = 1.0
     for _ in range(50):
         x = Phi @ x + Gamma @ (-K @ x)
+    # 50 steps of the same products in another summation order, through a contraction (ρ < 1): rounding <= 50
+    # steps × 5 terms × eps ≈ 6e-14 relative
     assert_allclose(bare_loop(Phi, Gamma, K, 50), x, rtol=1e-12, atol=1e-300)
 
 
@@ -597,6 +646,9 @@ def test_every_level_matches_the_matrix_exponential():
         for lev in range(levels + 1):
             E = scipy.linalg.expm(M * h / 2 ** lev)
             scale = np.abs(E[:4]).max()
+            # expm is accurate to a few eps of ||E|| (observed 2 eps); a level is at most two squarings
+            # away from a direct expm (see above), each doubles the error and adds 2 eps with ||E|| ~ 1
+            # (lightly damped rotations): <= 4 × few + 6 eps ≈ 20 eps; 1e-14 is 45 eps
             assert_allclose(disc.Phi[mask, lev], E[:4, :4], rtol=0, atol=1e-14 * scale)
             assert_allclose(disc.Gamma[mask, lev], E[:4, 4:], rtol=0, atol=1e-14 * scale)
 

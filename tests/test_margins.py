@@ -43,10 +43,15 @@ def test_third_order_loop(K):
     s = 1j * DENSE
     m = stability_margins(loop(DENSE, K / (s * (s + 1) * (s + 2))))
     roots = np.roots([1.0, 5.0, 4.0, -K**2])
+    # the positive root of a cubic with simple roots: its imaginary part is rounding (~eps·|u|), 1e-12 separates
+    # it from the complex pair
     u = roots[(np.abs(roots.imag) < 1e-12) & (roots.real > 0)].real
     assert u.size == 1
     w_gc = float(np.sqrt(u[0]))
     pm = 90.0 - np.degrees(np.arctan(w_gc) + np.arctan(w_gc / 2))
+    # tolerance origin for the DENSE grid (Δ = 6 ln10/30000 = 4.6e-4 in ln ω): crossovers and values come from
+    # local cubics, error ~Δ⁴/24·|y''''| ≈ 2e-15·|y''''| for these smooth loops; 1e-9 leaves six orders for the
+    # derivatives, 1e-8 where a value divides by a crossover (delay margin)
     assert_allclose(m.phase_crossover_rad_s, np.sqrt(2.0), rtol=1e-9)
     assert_allclose(m.gain_margin_db, 20 * np.log10(6.0 / K), rtol=1e-9, atol=1e-9)
     assert_allclose(m.gain_crossover_rad_s, w_gc, rtol=1e-9)
@@ -66,6 +71,8 @@ def test_integrator_with_pure_delay(wc, tau):
     omega = np.logspace(-2, 3, 40001)
     s = 1j * omega
     m = stability_margins(loop(omega, wc / s * np.exp(-s * tau)))
+    # grid Δ = 5 ln10/40000 = 2.9e-4: local-cubic error ~Δ⁴/24 ≈ 3e-16 relative to the derivatives; 1e-9 (1e-8
+    # for the quantities that divide or take a log of a small difference)
     assert_allclose(m.gain_crossover_rad_s, wc, rtol=1e-9)
     assert_allclose(m.phase_margin_deg, 90.0 - np.degrees(wc * tau), rtol=1e-9)
     assert_allclose(m.delay_margin_s, np.pi / (2 * wc) - tau, rtol=1e-8)
@@ -74,6 +81,8 @@ def test_integrator_with_pure_delay(wc, tau):
     k = np.arange(0, 1000)
     w_k = (np.pi / 2 + 2 * np.pi * k) / tau
     w_k = w_k[w_k < omega[-1]]
+    # up to 1e3 rad/s the phase ωτ turns by up to 0.15 rad per grid interval: the cubic error grows as (Δ·ωτ)⁴,
+    # 1e-8 (1e-7 for the GMs)
     assert_allclose(m.phase_crossovers, w_k, rtol=1e-8)             # all of them, none spurious
     assert_allclose(m.gain_margins_db, 20 * np.log10(w_k / wc), rtol=1e-7)
 
@@ -86,11 +95,14 @@ def test_pure_delay_below_unity(K, tau):
     m = stability_margins(loop(omega, K * np.exp(-1j * omega * tau)))
     assert m.gain_crossovers.size == 0
     assert m.phase_margin_deg == np.inf and np.isnan(m.gain_crossover_rad_s) and m.delay_margin_s == np.inf
+    # |L| = K exactly at every point; crossovers on a uniform grid of spacing 1e-3/τ: cubic error ~1e-13
+    # relative, 1e-9
     assert_allclose(m.gain_margin_db, -20 * np.log10(K), rtol=1e-9)
     assert_allclose(m.phase_crossover_rad_s, np.pi / tau, rtol=1e-9)
     w_k = np.pi * (2 * np.arange(10) + 1) / tau
     assert_allclose(m.phase_crossovers, w_k[w_k < omega[-1]], rtol=1e-9)
     assert_allclose(m.modulus_margin, 1.0 - K, rtol=1e-9)
+    # a flat minimum: its location is known to ~sqrt(value error / curvature), about 1e-5 relative here; 1e-4
     assert_allclose(m.modulus_margin_rad_s, np.pi / tau, rtol=1e-4)
     d = m.to_dict()
     assert d["phase_margin_deg"] is None and d["gain_crossover_rad_s"] is None
@@ -105,6 +117,7 @@ def test_no_phase_crossover_gives_infinite_gain_margin():
     assert m.phase_crossovers.size == 0 and m.stable_hint
     # |L| = 1 ⇔ ω⁴ + ω² − 1 = 0 ⇔ ω² = (√5 − 1)/2; PM = 90° − atan ω
     w = np.sqrt((np.sqrt(5) - 1) / 2)
+    # DENSE grid: see test_third_order_loop
     assert_allclose(m.phase_margin_deg, 90.0 - np.degrees(np.arctan(w)), rtol=1e-9)
 
 
@@ -116,9 +129,12 @@ def test_modulus_margin_closed_form():
         s = 1j * DENSE
         m = stability_margins(loop(DENSE, K / (s * (s + 1))))
         u = (K + np.sqrt(K**2 + 2 * K)) / 2
+        # the minimum's value from the refined local cubics: second order in the location error, ~1e-13
         assert_allclose(m.modulus_margin, np.sqrt(((K - u) ** 2 + u) / (u**2 + u)), rtol=1e-9)
         assert_allclose(m.modulus_margin_rad_s, np.sqrt(u), rtol=1e-4)   # a flat minimum: looser
         S = sensitivity(m.frf)
+        # the largest grid value of |S| misses the true peak by (Δ/2)²·curvature/2 ≈ 3e-8 relative (curvature ~1
+        # in ln ω); 1e-6
         assert_allclose(1.0 / np.max(np.abs(S.response)), m.modulus_margin, rtol=1e-6)
 
 
@@ -129,6 +145,9 @@ def test_bandwidth_of_integrator_loop(wc):
     s = 1j * DENSE
     m = stability_margins(loop(DENSE, wc / s))
     w0 = DENSE[0]
+    # the −3.01 dB crossing from local cubics on DENSE (see above), and the closed form with the grid's ω0;
+    # against ωc alone the difference is ω0²/ωc² <= 1.1e-5 (ωc >= 0.3): 1e-4; ∠(ωc/jω) = −90° at every point, so
+    # PM is 90 up to rounding: 1e-12
     assert_allclose(m.bandwidth_rad_s, np.sqrt(wc**2 + 2 * w0**2), rtol=1e-8)
     assert_allclose(m.bandwidth_rad_s, wc, rtol=1e-4)
     assert_allclose(m.phase_margin_deg, 90.0, rtol=1e-12)
@@ -141,6 +160,7 @@ def test_bandwidth_is_relative_to_the_low_frequency_value():
     K = 3.0
     s = 1j * DENSE
     m = stability_margins(loop(DENSE, K / (s + 1)))
+    # DENSE grid: local-cubic error, see above
     assert_allclose(m.bandwidth_rad_s, np.sqrt((1.0 + K) ** 2 + 2 * DENSE[0] ** 2), rtol=1e-8)
     assert m.gain_crossovers.size == 1     # |L| = 1 at ω = √(K² − 1)
     assert_allclose(m.gain_crossover_rad_s, np.sqrt(K**2 - 1), rtol=1e-9)
@@ -167,16 +187,22 @@ def test_lightly_damped_resonance_three_crossovers():
     # first has ~67°, the second sits on the far side of −540°: PM ≈ −139°, |PM| large).
     wc, wn, zeta = 1.0, 10.0, 0.01
     roots = np.roots([1.0, (4 * zeta**2 - 2) * wn**2, wn**4, -(wc**2) * wn**4])
+    # three simple real roots of a cubic (condition <= 1e3 for ζ = 0.01): imaginary parts are rounding, << 1e-9
     assert np.all(np.abs(roots.imag) < 1e-9) and np.all(roots.real > 0)
     w_all = np.sort(np.sqrt(roots.real))
     psi = np.degrees(np.arctan2(2 * zeta * wn * w_all, wn**2 - w_all**2))
     tau = np.radians(410.0 - psi[2]) / w_all[2]
     phase = -90.0 - np.degrees(w_all * tau) - psi
     pm = wrap180(180.0 + phase)
+    # τ was solved for PM3 = 40° in closed form: rounding only
     assert np.argmin(np.abs(pm)) == 2 and abs(pm[2] - 40.0) < 1e-9
 
     omega = np.logspace(-1, 2, 60001)
     m = stability_margins(loop(omega, resonant_loop(omega, wc, wn, zeta, tau)))
+    # grid Δ = 1.15e-4 in ln ω, but the resonance's features are 2ζ = 0.02 wide: the cubic error scales as
+    # (Δ/2ζ)⁴ ≈ 1e-9 of the phase swing (180°): ~1e-6 deg, 1e-5 deg for phases; crossovers sit where |L| is
+    # smooth (1e-8); delay margins divide by them (1e-6); the phase-crossover checks evaluate the closed form at
+    # our crossovers (1e-6 rad, 1e-5 dB)
     assert_allclose(m.gain_crossovers, w_all, rtol=1e-8)
     assert_allclose(m.phase_margins_deg, pm, atol=1e-5)
     assert_allclose(m.phase_margin_deg, 40.0, atol=1e-5)
@@ -220,6 +246,10 @@ def test_against_python_control(name):
         gm, pm, sm, wpc, wgc, wms = control.stability_margins(sys)
         GM, PM, SM, W180, WC, WS = control.stability_margins(sys, returnall=True)
     gm_db = 20 * np.log10(gm) if np.isfinite(gm) else np.inf
+    # python-control: crossovers are polynomial roots (~1e-12), but its modulus margin is a scipy minimisation
+    # whose location at a flat minimum is known to ~1e-4; our grid (Δ = 4e-4, local cubics) is accurate to
+    # ~1e-12 except the same flat minimum. 1e-3 is set by the oracle's minimiser and kept for all quantities
+    # (any modelling error is O(1))
     assert_allclose(m.gain_margin_db, gm_db, rtol=1e-3, atol=1e-4)
     assert_allclose(m.phase_margin_deg, pm, rtol=1e-3, atol=1e-4)
     assert_allclose(m.modulus_margin, sm, rtol=1e-3)
@@ -241,6 +271,8 @@ def test_coarse_grid_still_accurate():
     sys = RATIONAL["third order"]
     omega = np.logspace(-2, 2, 80)
     m = stability_margins(loop(omega, sys(1j * omega)))
+    # 80 points over 4 decades: Δ = 0.117 in ln ω, local-cubic error Δ⁴/24·|y''''| ≈ 8e-6·|y''''| ≈ 1e-4 deg or
+    # dB here: 1e-3 (reference values from python-control's polynomial roots, exact to 1e-12)
     assert_allclose(m.phase_margin_deg, 32.613097047774, atol=1e-3)
     assert_allclose(m.gain_margin_db, 20 * np.log10(3.0), atol=1e-3)
     assert_allclose(m.modulus_margin, 0.43246721408683, rtol=1e-3)
@@ -251,6 +283,7 @@ def test_crossover_exactly_on_a_grid_point_is_found_once():
     assert np.any(omega == 1.0)
     m = stability_margins(loop(omega, 1.0 / (1j * omega)))
     assert m.gain_crossovers.size == 1
+    # a crossover exactly on a grid point, and ∠(1/jω) = −90° exactly: rounding only
     assert_allclose(m.gain_crossover_rad_s, 1.0, rtol=1e-12)
     assert_allclose(m.phase_margin_deg, 90.0, rtol=1e-12)
 
@@ -273,6 +306,10 @@ def test_discrete_integrator(K):
     z = np.exp(1j * omega * T)
     m = stability_margins(loop(omega, K / (z - 1), sample_period=T, name="discrete integrator"))
     a = np.arcsin(K / 2)
+    # grid Δ = ln(3138)/4000 = 2e-3 in ln ω: local-cubic error ~Δ⁴/24 ≈ 7e-13 relative to the derivatives: 1e-9
+    # (1e-8 for the delay margins, which divide by the crossover); at π/T (phase crossover and modulus-margin
+    # location, exact by construction: 1e-12) the values are extrapolated from the last grid point at 0.999π/T
+    # with the even/odd symmetry, a second-order error in 0.001π: 1e-6
     assert_allclose(m.gain_crossover_rad_s, 2 * a / T, rtol=1e-9)
     assert_allclose(m.phase_margin_deg, 90.0 - np.degrees(a), rtol=1e-9)
     assert_allclose(m.delay_margin_samples, (np.pi / 2 - a) / (2 * a), rtol=1e-8)
@@ -284,6 +321,7 @@ def test_discrete_integrator(K):
     a_ = 1.0 - K
     c = (4 * a_ * np.cos(omega[0] * T) - 1 - a_**2) / (2 * a_) if K != 1 else np.inf
     if abs(c) <= 1:
+        # local cubic on this grid: see above
         assert_allclose(m.bandwidth_rad_s, np.arccos(c) / T, rtol=1e-8)
     else:
         assert m.bandwidth_rad_s == np.inf
@@ -291,6 +329,8 @@ def test_discrete_integrator(K):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         _, pm, sm, _, wgc, _ = control.stability_margins(control.tf([K], [1.0, -1.0], T))
+    # python-control on the discrete transfer function: polynomial roots on the unit circle, but its modulus
+    # margin is a scipy minimisation (~1e-8 in value): 1e-6
     assert_allclose([m.phase_margin_deg, m.gain_crossover_rad_s, m.modulus_margin], [pm, wgc, sm], rtol=1e-6)
 
 
@@ -311,6 +351,8 @@ def test_gain_scaling_shifts_gain_margins(scale):
     L = 2.0 / (s * (s + 1) * (s + 2)) * np.exp(-0.3 * s)
     m1 = stability_margins(loop(omega, L))
     m2 = stability_margins(loop(omega, scale * L))
+    # scaling by a positive constant leaves the phase bit-identical: the same crossovers up to rounding; the GMs
+    # shift by 20 log10(scale) up to the rounding of the logs of values ~1e3: 1e-9 dB
     assert_allclose(m2.phase_crossovers, m1.phase_crossovers, rtol=1e-12)
     assert_allclose(m2.gain_margins_db, m1.gain_margins_db - 20 * np.log10(scale), atol=1e-9)
 
@@ -320,6 +362,8 @@ def test_closed_loop_and_sensitivity():
     omega = np.logspace(0, 3, 50)
     L = loop(omega, 30.0 / (1j * omega), name="velocity-open", sample_period=T_s)
     T, S = closed_loop(L), sensitivity(L)
+    # L/(1+L) + 1/(1+L) with |T|, |S| <= 1.1 (|L| <= 30): one division each, <= 4 eps ≈ 1e-15; 1e-12. The next
+    # line is the same formula: exact
     assert_allclose(T.response + S.response, 1.0, rtol=1e-12)
     assert_allclose(T.response, L.response / (1 + L.response))
     assert T.sample_period == S.sample_period == T_s
@@ -332,11 +376,13 @@ def test_to_dict_and_to_pandas():
     d = m.to_dict()
     json.dumps(d, allow_nan=False)
     assert d["name"] == "L" and d["stable_hint"] is True and d["delay_margin_samples"] is None
+    # the same number through to_dict: exact
     assert_allclose(d["gain_margin_db"], m.gain_margin_db)
     frame = m.to_pandas()
     assert list(frame.columns) == ["kind", "omega", "frequency_hz", "phase_margin_deg", "delay_margin_s",
                                    "gain_margin_db", "reported"]
     assert list(frame["kind"]) == ["gain", "phase"] and frame["reported"].all()
+    # the same division: exact
     assert_allclose(frame["frequency_hz"], frame["omega"] / (2 * np.pi))
     assert isinstance(m, Margins) and m.gain_crossovers.flags.writeable is False
 

@@ -27,6 +27,10 @@ def test_two_mass_one_spring_chain():
     m1, m2, k = 3.0, 7.0, 250.0
     mech = build_mechanics(ChainSpec(type="chain", masses=[m1, m2], stiffnesses=[k]))
     assert mech.dof_names == ("m1", "m2")
+    # assembly tolerances in this file: a matrix entry is a sum of a few products k·r_a·r_b, each rounding <=
+    # eps, so the assembled entry is within a few eps relative (1e-15 to 1e-14); entries copied from the file
+    # are exact (0); through unit conversions by pint (mm/rev → m/rad, one division by 2π and a scale) a few
+    # more roundings (1e-12 to 1e-13)
     assert_allclose(mech.mass, np.diag([m1, m2]), rtol=0, atol=0)
     assert_allclose(mech.stiffness, k * np.array([[1.0, -1.0], [-1.0, 1.0]]), rtol=1e-15, atol=0)
     assert_allclose(mech.damping, np.zeros((2, 2)), rtol=0, atol=0)
@@ -38,6 +42,7 @@ def test_chain_with_ground_spring_dampings_and_viscous_friction():
                                      viscous=visc, ground_stiffness=k0))
     K = np.array([[k0 + 10.0, -10.0, 0.0], [-10.0, 30.0, -20.0], [0.0, -20.0, 20.0]])
     D = np.array([[0.1 + 0.5, -0.1, 0.0], [-0.1, 0.3, -0.2], [0.0, -0.2, 0.2 + 0.7]])
+    # sums of two or three terms: a few eps (atol 1e-15 for the entries that cancel to 0)
     assert_allclose(mech.stiffness, K, rtol=1e-14, atol=0)
     assert_allclose(mech.damping, D, rtol=1e-14, atol=1e-15)
     assert_array_equal(np.diag(mech.mass), masses)
@@ -85,6 +90,7 @@ def test_rotational_to_translational_coupling_with_lead_in_units():
     mech = build_mechanics(spec)
     r = 0.010 / (2 * math.pi)
     g = np.array([r, -1.0])
+    # pint's conversion of 10 mm/rev: a few roundings more than the direct product
     assert_allclose(mech.stiffness, k * np.outer(g, g), rtol=1e-12)
     assert_allclose(np.diag(mech.mass), [2e-3, 350.0], rtol=1e-14)
     assert [d.kind for d in mech.dofs] == ["rotational", "translational"]
@@ -118,6 +124,7 @@ def test_belt_rack_reproduces_paper_eqs_5_to_9():
     M, mu, K = _paper_matrices(BELT_RACK)
     assert mech.dof_names == ("motor", "load")
     assert [d.kind for d in mech.dofs] == ["rotational", "translational"]
+    # the paper's closed forms, in another order: a few roundings (1e-14; 1e-13 for k/n_b²·R² products)
     assert_allclose(mech.mass, M, rtol=1e-14, atol=0)
     assert_allclose(mech.stiffness, K, rtol=1e-13, atol=0)
     assert_allclose(mech.damping, mu, rtol=1e-13, atol=0)
@@ -130,6 +137,7 @@ def test_belt_rack_example_file_matches_paper_eqs():
     machine = load_model(EXAMPLES_DIR / "paper_2m1s.toml")
     mech = build_mechanics(machine.axis().mechanics)
     M, mu, K = _paper_matrices(BELT_RACK)
+    # from a model file through pint's unit conversions: a few roundings each
     assert_allclose(mech.mass, M, rtol=1e-12)
     assert_allclose(mech.stiffness, K, rtol=1e-12)
     assert_allclose(mech.damping, mu, rtol=1e-12)
@@ -141,6 +149,7 @@ def test_belt_rack_follows_each_parameter(changed):
     params[changed] *= 1.7
     mech = build_mechanics(BeltRackSpec(type="belt-rack", **params))
     M, mu, K = _paper_matrices(params)
+    # the paper's closed forms, e.g. k/n_b²·R²: a few roundings each in another order
     assert_allclose(mech.mass, M, rtol=1e-13)
     assert_allclose(mech.stiffness, K, rtol=1e-13)
     assert_allclose(mech.damping, mu, rtol=1e-13)
@@ -188,6 +197,7 @@ def test_5m4s_matrices_from_the_paper_parameters():
 
     K = assemble(k_st, [(1, 0, k_se), (3, 2, k_lo), (4, 2, k_sh)])
     D = assemble(c_st, [(1, 0, c_se), (3, 2, c_lo), (4, 2, c_sh), (2, 1, f_v)])
+    # sums of a few terms each: a few eps
     assert_allclose(mech.mass, np.diag(m), rtol=1e-14)
     assert_allclose(mech.stiffness, K, rtol=1e-14, atol=0)
     assert_allclose(mech.damping, D, rtol=1e-14, atol=0)
@@ -197,6 +207,9 @@ def test_rigid_modes_basis_is_orthonormal_null_space_of_K():
     mech = build_mechanics(load_model(EXAMPLES_DIR / "paper_5m4s.toml").axis().mechanics)
     R = mech.rigid_modes()
     assert R.shape == (5, 1)
+    # an orthonormal basis from an SVD/QR: orthonormal to n·eps (n = 5); K R is rounding of K's largest entries
+    # (the 1e12 N/m spring): the null space is exact to ~κ·eps relative to ‖K‖; 1e-9 of max|K|; the mode shape's
+    # components to n·eps (1e-12)
     assert_allclose(R.T @ R, np.eye(1), atol=1e-12)
     assert_allclose(mech.stiffness @ R, 0.0, atol=1e-9 * np.abs(mech.stiffness).max())
     # the free group is primary + load + scale head moving together
@@ -296,6 +309,8 @@ def _check_modal(data, mech, res):
     # independent peer: the generalized symmetric eigenproblem K phi = w^2 M phi
     ref = np.sort(np.clip(scipy.linalg.eigvalsh(mech.stiffness, mech.mass), 0.0, None))
     atol = _eig_tolerance(ref[-1])
+    # atol: the symmetric eigensolver's backward error (_eig_tolerance); rtol 1e-8 leaves room for the package's
+    # own path (a damped eigenproblem of the state matrix for the same undamped values)
     assert_allclose(_omega2(res), ref, rtol=1e-8, atol=atol)
     json.dumps(res.to_dict(), allow_nan=False)           # the --json contract: no NaN, no inf
     zeros = int(np.count_nonzero(res.undamped_hz == 0.0))
@@ -325,7 +340,7 @@ def test_random_chains(masses, data):
     K[0, 0] = k0
     for i, k in enumerate(ks):
         K[i:i + 2, i:i + 2] += k * np.array([[1.0, -1.0], [-1.0, 1.0]])
-    assert_allclose(mech.stiffness, K, rtol=1e-14, atol=0)
+    assert_allclose(mech.stiffness, K, rtol=1e-14, atol=0)        # sums of two terms: a few eps
     lumped = spec.to_lumped().model_dump()
     res = modal_analysis(mech)
     _check_modal(lumped, mech, res)
@@ -349,6 +364,7 @@ def test_random_trees(data, perm_seed):
     mech2 = build_mechanics(LumpedSpec.model_validate(shuffled))
     assert mech2.dof_names == tuple(order)
     idx = [mech.index(name) for name in order]
+    # the same sums in another order: <= 1 ulp per entry (1e-15); the eigenvalues: the solver's backward error
     assert_allclose(mech2.stiffness, mech.stiffness[np.ix_(idx, idx)], rtol=1e-15, atol=0)
     res2 = modal_analysis(mech2)
     w1, w2 = _omega2(res), _omega2(res2)

@@ -34,6 +34,11 @@ def test_two_mass_free_free_chain():
     assert rigid.undamped_hz == 0.0 and rigid.frequency_hz == 0.0 and rigid.damping_ratio == 0.0
     assert res.undamped_hz[0] == 0.0
     f = math.sqrt(k * (m1 + m2) / (m1 * m2)) / TWO_PI
+    # undamped values are singular values of diag(√k) G M^(-1/2), absolute accuracy ~eps·ω_max (modal.py), here
+    # ω = ω_max: a few eps relative (1e-12). Damped ones are poles of the state matrix by dgeev, which balances
+    # it: for an oscillator the balanced matrix is nearly normal with norm ~ω, so a pole is known to a few eps
+    # relative too; 1e-10 leaves room for the pole-to-mode matching and the shapes' ratios (shape components are
+    # O(1), normalised to an exact +1)
     assert_allclose(flex.undamped_hz, f, rtol=1e-12)
     assert_allclose(flex.frequency_hz, f, rtol=1e-10)
     assert_allclose(flex.damping_ratio, 0.0, atol=1e-12)
@@ -52,6 +57,8 @@ def test_two_mass_grounded_chain_quadratic_formula():
     disc = math.sqrt(b * b - 4 * a * c)
     w2 = sorted([(-b - disc) / (2 * a), (-b + disc) / (2 * a)])
     assert res.n_rigid == 0
+    # ω_max/ω_min ≈ 3: SVD accuracy eps·ω_max gives ~1e-15 relative (1e-12); poles after balancing 1e-10, as
+    # above
     assert_allclose(res.undamped_hz, np.sqrt(w2) / TWO_PI, rtol=1e-12)
     assert_allclose(res.frequencies_hz, np.sqrt(w2) / TWO_PI, rtol=1e-10)
 
@@ -67,6 +74,8 @@ def test_lightly_damped_oscillator(via):
     (mode,) = res.modes
     wn = math.sqrt(k / m)
     zeta = c / (2 * math.sqrt(k * m))
+    # one oscillator: the balanced 2×2 state matrix's poles to a few eps; ζ and ω_d from them in a few
+    # roundings: 1e-10 (1e-12 for the undamped value)
     assert_allclose(mode.damping_ratio, zeta, rtol=1e-10)
     assert_allclose(mode.frequency_hz, wn / TWO_PI, rtol=1e-12)
     assert_allclose(mode.undamped_hz, wn / TWO_PI, rtol=1e-12)
@@ -81,6 +90,7 @@ def test_overdamped_oscillator_keeps_natural_frequency():
         bodies={"m": {"mass": m}},
         couplings={"k": {"between": ["m", "ground"], "stiffness": k, "damping": c}})))
     (mode,) = res.modes
+    # overdamped: ω_n = √(l1 l2) and ζ from two real poles (κ ~ 1 after balancing): a few eps; 1e-10
     assert_allclose(mode.frequency_hz, math.sqrt(k / m) / TWO_PI, rtol=1e-10)
     assert_allclose(mode.damping_ratio, c / (2 * math.sqrt(k * m)), rtol=1e-10)
     assert mode.damped_frequency_hz == 0.0
@@ -102,6 +112,11 @@ def test_overdamped_soft_mode_beside_a_stiff_one():
     disc = math.sqrt(b2 * b2 - 4 * a2 * c2)
     w2_high = (-b2 + disc) / (2 * a2)
     w2_low = c2 / (a2 * w2_high)                  # product of the roots, no cancellation
+    # SVD accuracy eps·ω_max = 7e-11 rad/s absolute against ω_soft ≈ 1 rad/s: 7e-11 relative; 1e-6 for the
+    # damped values: merging a and b is exact to O(ω_soft²/ω_stiff²) = 1e-11, and the slow pole (-1e-4 rad/s
+    # beside 3e5 rad/s) has a normwise first-order bound of 1e-5 even after balancing, but dgeev on this graded
+    # matrix reaches 2e-12 on every OpenBLAS kernel tried (Prescott to SkylakeX): the 1e-6 rests on that
+    # grading. The stiff mode: eps·ω_max/ω = a few eps (1e-9)
     assert_allclose(soft.undamped_hz, math.sqrt(w2_low) / TWO_PI, rtol=1e-6)
     assert_allclose(stiff.undamped_hz, math.sqrt(w2_high) / TWO_PI, rtol=1e-9)
     # soft mode: a and b as one 1.001 kg body on k and c
@@ -127,6 +142,10 @@ def test_wide_spread_grounded_chain_soft_modes():
     m_half = np.sqrt(masses)
     mu = np.linalg.eigvalsh(m_half[:, None] * np.minimum.outer(c, c) * m_half[None, :])
     w_soft = np.sqrt(1.0 / mu[::-1][:2])
+    # python-control's damp (eig of the unbalanced plant) against the closed-form compliance: the soft modes of
+    # a chain with a 1e12/100 stiffness spread are ill-conditioned for eig (first-order bound up to 0.3
+    # relative); what we check is the package (SVD: absolute eps·ω_max = 7e-9 rad/s, i.e. 7e-8 relative at 0.1
+    # rad/s) against them; 1e-6 is the peers' agreement on every kernel tried (observed 2e-16)
     assert_allclose(wn_ref[:2], w_soft, rtol=1e-6)        # the two peers agree
     # The result: no flexible mode at 0 Hz, every frequency as the peers say, JSON-clean.
     assert np.all(res.undamped_hz > 0.0), res.undamped_hz
@@ -142,6 +161,7 @@ def test_paper_2m1s_flexible_frequency():
     J, M = np.diag(mech.mass)
     k = 2.5e7
     r = 0.025 / (0.060 / 0.030)   # R_pig / n_b
+    # one flexible mode, the SVD's largest value: a few eps
     assert_allclose(res.undamped_hz, [0.0, math.sqrt(k * (r * r / J + 1 / M)) / TWO_PI], rtol=1e-12)
 
 
@@ -155,6 +175,9 @@ def test_mode_shapes_normalised_and_eigenvectors(name):
         assert mode.shape[mode.dominant_dof] == 1.0          # the largest component is +1
         w2 = (TWO_PI * mode.undamped_hz) ** 2
         residual = mech.stiffness @ phi - w2 * mech.mass @ phi
+        # K φ − ω² M φ for shapes with components <= 1: the residual of a backward-stable SVD is ~eps·‖K‖ per
+        # entry, amplified by the shapes' conditioning (ω_max²/ω² for the softest mode beside the 1e12 N/m
+        # spring: up to 1e6): 1e-8 of max|K|
         assert_allclose(residual, 0.0, atol=1e-8 * np.abs(mech.stiffness).max())
     assert res.shapes.shape == (mech.n, mech.n)
 
@@ -181,6 +204,8 @@ def test_paper_5m4s_frequencies_from_independent_eigensolve():
         K[np.ix_([i, j], [i, j])] += k * np.array([[1.0, -1.0], [-1.0, 1.0]])
     w2 = np.clip(scipy.linalg.eigvalsh(K, np.diag(m)), 0.0, None)
     w2_max = w2.max()
+    # atol: eigvalsh gets ω² to ~eps·ω²_max (×1e3 for the generalized problem's Cholesky and the order); rtol
+    # 1e-8: the SVD's ω to eps·ω_max, squared
     assert_allclose((TWO_PI * res.undamped_hz) ** 2, np.sort(w2), rtol=1e-8,
                     atol=1e3 * np.finfo(float).eps * w2_max)
 
@@ -206,6 +231,7 @@ def test_undamped_hz_ascending_when_damping_reorders_modes():
                       frictions={"c": {"between": ["f", "b"], "viscous": 1e4}})
     res = modal_analysis(build_mechanics(spec))
     assert res.n_rigid == 1
+    # ω_max/ω_min = 2: the SVD's eps·ω_max is a few eps relative
     assert_allclose(np.sort(res.undamped_hz), [0.0, 10 / TWO_PI, 20 / TWO_PI], rtol=1e-12)
     assert np.all(np.diff(res.undamped_hz) >= 0), res.undamped_hz
 

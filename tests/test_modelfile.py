@@ -42,6 +42,7 @@ def test_round_trip(path, tmp_path):
 def test_units_are_parsed_to_si():
     machine = load_model(EXAMPLES_DIR / "ballscrew_3m2s.toml")
     mech = machine.axis().mechanics
+    # unit conversions by pint: a few roundings each
     assert_allclose(mech.bodies["motor"].inertia, 23e-4, rtol=1e-12)                 # 23 kg*cm^2
     assert_allclose(mech.couplings["screw_nut"].ratios[0], 0.010 / (2 * 3.141592653589793), rtol=1e-12)
 
@@ -62,7 +63,7 @@ def test_override_with_toml_number_and_grams():
                           "axes.X.mechanics.bodies.scale_head.mass=12 g"])
     bodies = machine.axes["X"].mechanics.bodies
     assert bodies["load"].mass == 250.0
-    assert_allclose(bodies["scale_head"].mass, 0.012, rtol=1e-12)
+    assert_allclose(bodies["scale_head"].mass, 0.012, rtol=1e-12)          # "12 g" by pint: one rounding
 
 
 @pytest.mark.parametrize("item", ["axes.X.mechanics.bodies.load.mass=-3 kg",

@@ -24,6 +24,9 @@ def line_and_arc():
 # ------------------------------------------------------------------ geometry
 def test_length_point_and_tangent_of_line_plus_arc():
     p = line_and_arc()
+    # closed-form geometry, in this file: lengths are sums of one or two products (<= 2 roundings, 1e-15 ≈ 4.5
+    # eps); points are R·cos/sin (libm <= 1 ulp) plus offsets, all <= 0.3 m, so a few ulp of 0.3 m ≈ 1e-16 (atol
+    # 1e-15); the curvature 1/R = 20 1/m to a few eps of 20 (atol 1e-12)
     assert_allclose(p.length, 0.1 + math.pi * R / 2, rtol=1e-15)
     s = np.array([0.0, 0.05, 0.1, 0.1 + math.pi * R / 4, p.length])
     c45 = math.sqrt(0.5)
@@ -38,6 +41,7 @@ def test_length_point_and_tangent_of_line_plus_arc():
 @pytest.mark.parametrize("clockwise, sweep", [(False, math.pi / 2), (True, -3 * math.pi / 2)])
 def test_arc_direction(clockwise, sweep):
     arc = Arc((R, 0.0), (0.0, R), (0.0, 0.0), clockwise=clockwise)
+    # atan2 of exact points: <= 1 ulp; the length one more product
     assert_allclose(arc.sweep, sweep, rtol=1e-15)
     assert_allclose(arc.length, abs(sweep) * R, rtol=1e-15)
     mid = arc.point(np.array([arc.length / 2]))[0]
@@ -47,9 +51,11 @@ def test_arc_direction(clockwise, sweep):
 
 def test_full_circle_and_three_axes():
     arc = Arc((R, 0.0, 0.01), (R, 0.0, 0.01), (0.0, 0.0), clockwise=True)
+    # 2πR in one product; points R·(cos, sin) with libm's <= 1 ulp: radius to a few eps (1e-15)
     assert_allclose(arc.length, 2 * math.pi * R, rtol=1e-15)
     pts = arc.point(np.linspace(0, arc.length, 9))
     assert_allclose(np.hypot(pts[:, 0], pts[:, 1]), R, rtol=1e-15)
+    # the third axis is copied: exact
     assert_allclose(pts[:, 2], 0.01)
     assert_allclose(pts[2], [0.0, -R, 0.01], atol=1e-15)       # clockwise: through -Y first
     assert arc.center == (0.0, 0.0, 0.01)
@@ -58,6 +64,7 @@ def test_full_circle_and_three_axes():
 def test_arc_radius_within_tolerance_is_accepted_and_ends_on_its_circle():
     arc = Arc((R, 0.0), (0.0, R + 0.5e-6), (0.0, 0.0))
     end = arc.point(np.array([arc.length]))[0]
+    # the arc ends exactly on its given end point (the 0.5 µm radius mismatch is absorbed): rounding only
     assert_allclose(end, [0.0, R], atol=1e-15)
 
 
@@ -79,6 +86,8 @@ def test_bad_geometry_is_a_model_error(make, match):
 
 # ------------------------------------------------------------------ interpolation
 def _check_limits(out, feed, a=A, j=J):
+    # limits hold exactly in the closed-form profile; samples evaluate its polynomials at t = k·T, rounding
+    # ~eps·(t/T) of the values: 1e-9 relative is slack
     tol = 1e-9
     assert np.all(out.path_velocity >= -1e-12)
     assert out.path_velocity.max() <= feed * (1 + tol)
@@ -92,10 +101,15 @@ def test_line_duration_closed_form_and_limits():
     p = Path([Line((0.0, 0.0, 0.0), (0.3, 0.4, 0.0))])          # 0.5 m
     feed = 0.2
     out = interpolate(p, feed, A, J, PERIOD)
+    # closed form of the s-curve time: three quotients summed; the profile computes the same in another order: a
+    # few eps (1e-12)
     assert_allclose(out.profile.duration, 0.5 / feed + feed / A + A / J, rtol=1e-12)   # v J >= A², both reached
     _check_limits(out, feed)
+    # k·T: one rounding each
     assert_allclose(out.time[1] - out.time[0], PERIOD)
     assert out.time[-1] >= out.profile.end_time and out.time[-2] < out.profile.end_time
+    # the end point is held exactly after the move; velocities are the path velocity times the unit direction
+    # (0.6, 0.8): one rounding of values <= 0.2 m/s
     assert_allclose(out.position[-1], [0.3, 0.4, 0.0], atol=1e-15)
     assert_allclose(out.velocity, out.path_velocity[:, None] * [0.6, 0.8, 0.0], atol=1e-15)
 
@@ -120,6 +134,7 @@ def test_tangent_junction_keeps_the_feed_and_corner_stops():
     feed = 0.05
     tangent = interpolate(line_and_arc(), feed, A, J, PERIOD)
     at_junction = np.argmin(np.abs(tangent.s - 0.1))
+    # at a tangent junction the cruise phase continues: the plateau value in a few roundings
     assert_allclose(tangent.path_velocity[at_junction], feed, rtol=1e-12)
     assert tangent.profile.kind == "s-curve"
     corner = Path([Line((0.0, 0.0), (0.1, 0.0)), Line((0.1, 0.0), (0.1, 0.1))])
@@ -127,6 +142,8 @@ def test_tangent_junction_keeps_the_feed_and_corner_stops():
     assert out.profile.kind == "s-curve sequence"
     t_corner = out.profile.breaks[0] + sum(out.profile.segment_durations[:7])
     s, v, a = out.profile.evaluate(t_corner)
+    # the profile at its break time: polynomials evaluated at a sum of segment durations, rounding ~eps·t·(v, a,
+    # j) ≈ 1e-15; 1e-12
     assert_allclose([s, v, a], [0.1, 0.0, 0.0], atol=1e-12)
     _check_limits(out, feed)
     # a tiny kink under the tolerance is crossed at speed
@@ -139,6 +156,7 @@ def test_arc_speed_limited_by_centripetal_acceleration():
     p = Path([Line((0.0, 0.0), (0.05, 0.0)), Arc((0.05, 0.0), (0.05, 2 * small), (0.05, small))])
     out = interpolate(p, 0.5, A, J, 1e-4)
     v_arc = math.sqrt(A * small)
+    # the arc limit √(A·r) in closed form, the same in the interpolator: a few roundings
     assert_allclose(out.path_velocity.max(), v_arc, rtol=1e-12)
     on_arc = out.s > 0.05
     assert np.all(out.path_velocity[on_arc] ** 2 / small <= A * (1 + 1e-9))
@@ -149,6 +167,7 @@ def test_per_segment_feeds_stop_where_the_feed_changes():
     p = Path([Line((0.0, 0.0), (0.1, 0.0)), Line((0.1, 0.0), (0.2, 0.0))], feeds=[0.05, 0.02])
     out = interpolate(p, None, A, J, PERIOD)
     assert out.profile.kind == "s-curve sequence"
+    # plateaus at the segments' feeds: a few roundings
     assert_allclose(out.path_velocity[out.s < 0.1].max(), 0.05, rtol=1e-12)
     assert_allclose(out.path_velocity[out.s > 0.1].max(), 0.02, rtol=1e-12)
     same = interpolate(p, 0.03, A, J, PERIOD)                  # one feed overrides them
@@ -174,6 +193,8 @@ def test_axis_setpoint_matches_samples_and_is_relative():
     sp = out.axis_setpoint("y")
     pos, vel, acc = sp.evaluate(out.time)
     assert sp.name == "y" and sp.offset == 0.02
+    # the same numbers minus the offset (rounding of values <= 0.1 m); the acceleration of an arc includes v²·κ
+    # computed in another order: a few eps of a ~ A (1e-12)
     assert_allclose(pos, out.position[:, 1] - 0.02, atol=1e-15)
     assert_allclose(vel, out.velocity[:, 1], atol=1e-15)
     assert_allclose(acc, out.acceleration[:, 1], atol=1e-12)
@@ -191,17 +212,21 @@ def test_circle_test_path_has_a_steady_evaluated_circle(clockwise):
     center = (0.2, -0.1)
     ct = circle_test_path(center, R, clockwise)
     assert len(ct.path.segments) == 3
+    # sums of π·R terms: a few roundings
     assert_allclose(ct.path.length, 4 * math.pi * R, rtol=1e-12)     # 180° + 360° + 180°
     assert_allclose(ct.window, (math.pi * R, 3 * math.pi * R), rtol=1e-12)
     assert_allclose(ct.path.point(ct.window[0]), [0.2 + R, -0.1], atol=1e-15)   # starts at 0°
     feed = 2.0 / 60                                                # F2000
     out = interpolate(ct.path, feed, A, J, PERIOD)
     inside = ct.window_mask(out.s)
+    # the window is inside the cruise phase: the plateau value; points on the circle are center + R·(cos, sin):
+    # the radius is recovered to eps·|position|/R ≈ 1.1e-15 (1e-14)
     assert_allclose(out.path_velocity[inside], feed, rtol=1e-12)
     assert_allclose(np.hypot(*(out.position - center).T), R, rtol=1e-14)
     angle = np.unwrap(np.arctan2(*(out.position - center).T[::-1]))
     assert np.sign(angle[-1] - angle[0]) == (-1 if clockwise else 1)
     sweep = angle[inside][-1] - angle[inside][0]
+    # the first and last samples inside the window miss its ends by at most one sample's angle each, feed·T/R
     assert_allclose(abs(sweep), 2 * math.pi, atol=2 * feed * PERIOD / R)
 
 
@@ -209,6 +234,7 @@ def test_circle_test_path_options_and_errors():
     ct = circle_test_path((0.0, 0.0, 0.3), R, lead_in_angle=math.pi / 2, lead_out_angle=0.0,
                           start_angle=math.pi / 2)
     assert len(ct.path.segments) == 2 and ct.path.dimension == 3
+    # R·cos/sin of the start angle π/2 and an offset: rounding
     assert_allclose(ct.path.start, [R, 0.0, 0.3], atol=1e-15)
     with pytest.raises(ModelError, match="radius must be a finite number > 0"):
         circle_test_path((0, 0), 0.0)

@@ -53,10 +53,16 @@ def test_duration_and_peaks_against_closed_form(d, v, a, j, reached, sign):
     prof = scurve_profile(sign * d, v, a, j, start=0.3)
     expected, _ = closed_form_time(d, v, a, j)
     assert isinstance(prof, JerkProfile) and prof.kind == "s-curve"
+    # closed forms in this file: the profile's segment durations solve the same equations as closed_form_time in
+    # another order, a few roundings each, plus square/cube roots (<= 1 ulp): 1e-12; the distance is the
+    # requested one by construction (1e-15); the jerk is ±j exactly
     assert_allclose(prof.end_time - 0.3, expected, rtol=1e-12)
     assert_allclose(sum(prof.segment_durations), expected, rtol=1e-12)
     assert_allclose(prof.distance, sign * d, rtol=1e-15)
     _, pos, vel, acc, jerk = dense(prof)
+    # a reached limit: the dense samples on the plateau equal it up to the rounding of the polynomials (1e-9
+    # slack); a limit not reached is missed by a finite margin in these regimes (REGIMES: v j vs a², d vs the
+    # thresholds differ by factors >= 2), far more than 1e-6
     assert_allclose(np.max(np.abs(vel)), v, rtol=1e-9) if "v" in reached else \
         (np.max(np.abs(vel)) < v * (1 - 1e-6) or pytest.fail("v reached"))
     assert_allclose(np.max(np.abs(acc)), a, rtol=1e-9) if "a" in reached else \
@@ -68,6 +74,7 @@ def test_duration_and_peaks_against_closed_form(d, v, a, j, reached, sign):
 def test_before_start_and_after_end():
     prof = scurve_profile(0.2, 0.5, 4.0, 100.0, start=1.0)
     pos, vel, acc = prof.evaluate(np.array([0.0, 0.999, prof.end_time, prof.end_time + 5]))
+    # before the start and after the end the profile is constant: exact up to the rounding of d
     assert_allclose(pos, [0, 0, 0.2, 0.2], atol=1e-15)
     assert_allclose(vel, 0.0, atol=1e-15)
     assert_allclose(acc, 0.0, atol=1e-15)
@@ -108,9 +115,14 @@ def test_sequence_sums_moves_and_stops_between_them():
     seq = scurve_sequence(d, vmax, 5.0, 100.0, start=0.2)
     assert seq.kind == "s-curve sequence" and len(seq.segment_durations) == 21
     durations = [closed_form_time(x, v, 5.0, 100.0)[0] for x, v in zip(d, vmax)]
+    # sums of closed-form durations: a few roundings
     assert_allclose(seq.end_time, 0.2 + sum(durations), rtol=1e-12)
     stops = 0.2 + np.cumsum(durations)
     pos, vel, acc = seq.evaluate(stops)
+    # at each stop: position is the cumulative distance (rounding of a sum of <= 0.5 m values); velocity and
+    # acceleration are polynomials evaluated at a sum of segment durations t, whose rounding eps·t ≈ 1e-16 s
+    # times the jerk (100 m/s³) and acceleration gives <= 1e-12 and <= 1e-9 (a includes j·δt with δt the
+    # rounding of the durations' cumulative sum, amplified by j = 100)
     assert_allclose(pos, np.cumsum(d), atol=1e-15)
     assert_allclose(vel, 0.0, atol=1e-12)
     assert_allclose(acc, 0.0, atol=1e-9)
@@ -161,6 +173,9 @@ def test_time_optimal_against_a_linear_program(d, v, a, j, reached):
 def test_limits_never_exceeded_and_continuity(d, sign, v, a, j):
     prof = scurve_profile(sign * d, v, a, j)
     t, pos, vel, acc, jerk = dense(prof, 1501)
+    # limits hold exactly in closed form; samples only add rounding: 1e-9 relative slack; the time-optimal
+    # duration against the closed form: square and cube roots of hypothesis's extreme ratios (j/a up to 5e4)
+    # lose a few digits: 1e-9; the end position to the rounding of d (1e-12)
     tol = 1e-9
     assert np.max(np.abs(vel)) <= v * (1 + tol)
     assert np.max(np.abs(acc)) <= a * (1 + tol)
@@ -171,6 +186,8 @@ def test_limits_never_exceeded_and_continuity(d, sign, v, a, j):
     # continuity of position, velocity and acceleration across every break
     br = np.asarray(prof.breaks[1:])
     eps = 1e-9 * max(prof.end_time, 1e-3)
+    # continuity: across a break the left value differs by at most the derivative's bound times eps (1.01 allows
+    # the bound's rounding) plus rounding of the value (1e-12 of the next order's scale)
     for left, right, atol in zip(prof.evaluate(br - eps), prof.evaluate(br),
                                  (1.01 * v * eps + 1e-12 * d, 1.01 * a * eps + 1e-12 * v, 1.01 * j * eps + 1e-12 * a)):
         assert_allclose(left, right, rtol=0, atol=atol)
@@ -178,6 +195,9 @@ def test_limits_never_exceeded_and_continuity(d, sign, v, a, j):
     mid = 0.5 * (t[1:] + t[:-1])
     keep = np.diff(t) > 1e-12
     slope = np.diff(pos)[keep] / np.diff(t)[keep]
+    # the central difference of the position is v(t_mid) up to its truncation error Δt²/24·|x'''| with
+    # |x'''| = |jerk| <= j; /12 doubles it for an interval that straddles a jerk step; plus rounding of
+    # the position differences (1e-9 v)
     assert_allclose(slope, prof.evaluate(mid[keep])[1], atol=1e-9 * v + j * np.max(np.diff(t)) ** 2 / 12)
 
 

@@ -40,6 +40,8 @@ def test_plain_number_in_a_string_is_si():
     ("  3 kg  ", UNITS["mass"], 3.0),
 ])
 def test_strings_with_units(text, kind, expected):
+    # pint's conversion factors: a product or quotient of a few exact decimal factors and π: a few roundings
+    # (1e-12)
     assert_allclose(parse_quantity(text, kind), expected, rtol=1e-12, atol=0)
 
 
@@ -103,7 +105,7 @@ def test_cached_unit_factor_matches_a_full_pint_parse(text, kind):
         with pytest.raises(ValueError):
             parse_quantity(text, unit)
         return
-    # the same value whether the unit's factor is already cached or not
+    # the same value whether the unit's factor is already cached or not (at most one rounding apart)
     assert parse_quantity(text, unit) == pytest.approx(expected, rel=1e-15, abs=0)
     assert parse_quantity(text, unit) == pytest.approx(expected, rel=1e-15, abs=0)
 
