@@ -1,0 +1,257 @@
+"""Curvature bounds of the friction-event functions inside a base step (in-step event detection).
+
+Within a segment of a step (one stick configuration, held ``w = [u; f]``) every event function of
+the kernel is linear in the state: the holding force of a stuck link ``g = Lz[c, j] @ z`` or the
+velocity of a sliding link ``g = G[j] @ x``. Its second derivative depends on the state derivative
+``y = ẋ = [A_c B_c] z`` alone, which evolves autonomously, ``y(t) = e^{A_c t} y(0)``:
+``g''(t) = r A_c e^{A_c t} y(0)`` (``r`` the state part of the row). With ``ξ = Y y(0)`` the
+coordinates of ``y(0)`` in a block-diagonalising basis ``A_c = S diag(T_b) Y`` (``Y = S⁻¹``),
+
+    sup_{0 <= t <= h} |g''(t)| <= Σ_b K_b · |ξ_b|,
+
+where ``|ξ_b|`` is the Euclidean norm of the block's coordinates for a single real mode or a
+complex pair in real modal form (``T_b = [[σ, ω], [-ω, σ]]``, whose exponential is ``e^{σt}``
+times a rotation: ``K_b = ||q_b||₂ max(1, e^{μ h})`` with ``μ`` the block's logarithmic norm, exact),
+and the absolute value of each coordinate for the general block that gathers the slow eigenvalues
+(``|λ| h <= SLOW``: rigid-body Jordan blocks, the zeros of the constraints) and any cluster of
+close fast eigenvalues (componentwise suprema by a piecewise Taylor series with its remainder).
+Modal coordinates matter: in raw coordinates a stiff spring's two ends would each look like a
+large force. The kernel computes ``ξ = Psi z`` (``Psi = Y [A_c B_c]``) once per segment and
+``S2_j = K[c, j] @ |ξ|``; between two points ``a < b`` of the segment the function then lies
+within ``(t - a)(b - t) S2_j / 2`` of its chord (the interpolation remainder), so a sub-step whose
+chord and envelope stay on the safe side of the threshold holds no event.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg
+
+__all__ = ["SLOW", "MARGIN", "curvature_bounds"]
+
+SLOW = 0.5
+"""Eigenvalues with ``|λ| h <= SLOW`` go to the general (componentwise) block."""
+
+MARGIN = 1e-6
+"""Relative inflation of every bound: covers the rounding of the decomposition and of the suprema."""
+
+_CLUSTER = 1e-3      # fast eigenvalues closer than this (relative) share a general block
+_COND_MAX = 1e8      # a block basis worse conditioned than this: the blocks are merged
+_TAYLOR_STEP = 0.5   # grid of the piecewise Taylor suprema: Δt ||T||_∞ <= this
+_TAYLOR_TERMS = 14
+_GRID_MAX = 20000
+
+
+def _rotation_basis(v: np.ndarray) -> np.ndarray:
+    """Real basis ``[Re v, Im v]`` of a complex eigenvector, its phase chosen to make the two
+    columns orthogonal (a well-conditioned basis); the block is then ``[[σ, ω], [-ω, σ]]``."""
+    a, b = v.real, v.imag
+    phi = 0.5 * math.atan2(2 * (a @ b), (a @ a) - (b @ b))
+    v = v * np.exp(-1j * phi)
+    Q = np.column_stack([v.real, v.imag])
+    return Q / np.linalg.norm(Q[:, 0])
+
+
+def _fast_blocks(T: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, bool]]] | None:
+    """Real modal basis ``Q`` of ``T`` (all eigenvalues fast): one column per real eigenvalue, two
+    per complex pair; None when the eigenvalues cluster or the basis is ill-conditioned."""
+    n = T.shape[0]
+    lam, V = np.linalg.eig(T)
+    cols, blocks = [], []
+    for i in range(n):
+        if lam[i].imag < 0:
+            continue
+        others = np.delete(lam, [i, int(np.argmin(np.abs(lam - np.conj(lam[i]))))] if lam[i].imag > 0 else [i])
+        if others.size and np.min(np.abs(others - lam[i])) <= _CLUSTER * abs(lam[i]):
+            return None
+        if lam[i].imag > 0:
+            blocks.append((len(cols), 2, True))
+            Q = _rotation_basis(V[:, i])
+            cols += [Q[:, 0], Q[:, 1]]
+        else:
+            blocks.append((len(cols), 1, True))
+            cols.append(V[:, i].real / np.linalg.norm(V[:, i].real))
+    if len(cols) != n:
+        return None
+    Q = np.column_stack(cols)
+    if np.linalg.cond(Q) > _COND_MAX:
+        return None
+    return Q, blocks
+
+
+def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int, bool]]]:
+    """``S``, ``Y = S⁻¹`` and blocks ``(start, size, euclidean)`` with ``Y A S`` block diagonal.
+
+    An ordered real Schur form puts the slow eigenvalues (``|λ| h <= SLOW``) first; a Sylvester
+    equation decouples them from the fast ones, which are then diagonalised (real modal form).
+    Whatever cannot be separated safely stays in one general block (componentwise bounds)."""
+    n = A.shape[0]
+    slow = lambda re, im: bool(math.hypot(re, im) * h <= SLOW)  # noqa: E731
+    T, Z, k = scipy.linalg.schur(A, output="real", sort=slow)
+    if k == n:
+        return np.eye(n), np.eye(n), [(0, n, False)]
+    X = np.zeros((k, n - k))
+    if k:
+        try:
+            X = scipy.linalg.solve_sylvester(T[:k, :k], -T[k:, k:], -T[:k, k:])
+        except (np.linalg.LinAlgError, ValueError):
+            return np.eye(n), np.eye(n), [(0, n, False)]
+    fast = _fast_blocks(T[k:, k:])
+    if fast is None:
+        Q, fblocks = np.eye(n - k), [(0, n - k, False)]
+    else:
+        Q, fblocks = fast
+    # S = Z [[I, X], [0, I]] diag(I, Q);  Y = diag(I, Q⁻¹) [[I, -X], [0, I]] Zᵀ
+    S = Z.copy()
+    S[:, k:] = (Z[:, :k] @ X + Z[:, k:]) @ Q
+    Y = Z.T.copy()
+    Y[:k] -= X @ Z[:, k:].T
+    Y[k:] = np.linalg.solve(Q, Z[:, k:].T)
+    if not np.isfinite(S).all() or np.linalg.cond(S) > _COND_MAX:
+        return np.eye(n), np.eye(n), [(0, n, False)]
+    blocks = ([(0, k, False)] if k else []) + [(k + st, sz, eu) for st, sz, eu in fblocks]
+    return S, Y, blocks
+
+
+def _taylor_sup(q: np.ndarray, T: np.ndarray, h: float) -> np.ndarray:
+    """Componentwise ``sup_{0<=t<=h} |(q e^{T t})_i|``, rigorous: on a grid of ``t_k`` with
+    ``Δt ||T||_∞ <= 0.5``, ``|(v_k e^{Ts})_i| <= Σ_n Δt^n/n! |(v_k T^n)_i|`` plus the series' tail."""
+    q = np.atleast_2d(q)
+    m = T.shape[0]
+    if not np.any(q):
+        return np.zeros(q.shape)
+    # a diagonal scaling (balancing) lowers ||T||_∞ and so the grid: T = D Tb D⁻¹, so
+    # q e^{Tt} = (q D) e^{Tb t} D⁻¹
+    Tb, (d, _) = scipy.linalg.matrix_balance(T, permute=False, separate=True)
+    d = np.asarray(d, dtype=float)
+    norm = np.abs(Tb).sum(axis=1).max()
+    n_grid = max(1, int(math.ceil(h * norm / _TAYLOR_STEP)))
+    if n_grid > _GRID_MAX:
+        return np.full(q.shape, np.inf)
+    dt = h / n_grid
+    V = np.empty((n_grid, q.shape[0], m))          # v_k = q D e^{Tb t_k}, every row of q
+    V[0] = q * d
+    if n_grid > 1:
+        E = scipy.linalg.expm(Tb * dt)
+        for k in range(1, n_grid):
+            V[k] = V[k - 1] @ E
+    acc = np.abs(V)
+    W = V
+    for k in range(1, _TAYLOR_TERMS + 1):
+        W = W @ Tb
+        acc += np.abs(W) * (dt ** k / math.factorial(k))
+    W = W @ Tb
+    rho = dt * norm
+    tail = (np.abs(W).sum(axis=2) * (dt ** (_TAYLOR_TERMS + 1) / math.factorial(_TAYLOR_TERMS + 1))
+            / (1.0 - rho / (_TAYLOR_TERMS + 2)))
+    return (acc + tail[:, :, None]).max(axis=0) / d
+
+
+def _coefficients(R: np.ndarray, Y: np.ndarray, S: np.ndarray, A: np.ndarray,
+                  blocks: list[tuple[int, int, bool]], h: float,
+                  levels: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``KU, KP`` (shape ``(n_rows, levels + 1, nx)``) and ``K3`` (shape ``(n_rows, nx)``) of the
+    event rows ``R`` (state parts).
+
+    On a sub-step of length ``δ_l = h / 2**l`` of a segment, ``g`` deviates from its chord by at
+    most ``KU[l] @ |ξ| + τ(1 - τ) KP[l] @ |ξ|`` (``τ`` the fraction of the sub-step). A block
+    contributes its curvature ``δ_l² sup|g_b''| / 2`` to ``KP`` (the interpolation remainder) or,
+    when smaller, twice its amplitude ``sup|g_b|`` to ``KU`` (a fast block's part of ``g`` is
+    ``r S_b T_b⁻¹ e^{T_b t} ξ_b``: it lies within twice its amplitude of any chord).
+    ``sup |g'''| <= K3 @ |ξ|`` over the segment bounds the remainder of the Taylor polynomial
+    of degree 2 at a sub-step's start."""
+    n_rows, nx = R.shape[0], S.shape[1]
+    KU = np.zeros((n_rows, levels + 1, nx))
+    KP = np.zeros((n_rows, levels + 1, nx))
+    K3 = np.zeros((n_rows, nx))
+    half_dt2 = 0.5 * (h / 2.0 ** np.arange(levels + 1)) ** 2
+    RS = R @ S
+    # the general block at 0 holds the slow eigenvalues, unless the fast ones failed to separate
+    first = slice(0, blocks[0][1])
+    slow_first = not blocks[0][2] and np.abs(np.linalg.eigvals(Y[first] @ A @ S[:, first])).min() * h <= SLOW
+    for start, size, euclid in blocks:
+        sl = slice(start, start + size)
+        T = Y[sl] @ A @ S[:, sl]
+        slow = start == 0 and not euclid and slow_first
+        Q2 = RS[:, sl] @ T                              # g_b'' = q e^{Tt} ξ_b
+        Q3 = Q2 @ T
+        Q0 = None if slow else RS[:, sl] @ np.linalg.inv(T)   # g_b = p e^{Tt} ξ_b + constant
+        if euclid:
+            mu = np.linalg.eigvalsh(0.5 * (T + T.T)).max()
+            grow = max(1.0, math.exp(min(mu * h, 700.0)))
+            curv = np.zeros((n_rows, size))
+            curv[:, 0] = np.linalg.norm(Q2, axis=1) * grow
+            K3[:, start] = np.linalg.norm(Q3, axis=1) * grow
+            amp = None
+            if Q0 is not None:
+                amp = np.zeros((n_rows, size))
+                amp[:, 0] = 2.0 * np.linalg.norm(Q0, axis=1) * grow
+        else:
+            sups = _taylor_sup(np.vstack([Q2, Q3] + ([] if Q0 is None else [Q0])), T, h)
+            curv, K3[:, sl] = sups[:n_rows], sups[n_rows:2 * n_rows]
+            amp = None if Q0 is None else 2.0 * sups[2 * n_rows:]
+        # per level, the smaller of the two (the parabola's largest value is a quarter of C)
+        use_amp = np.zeros((n_rows, levels + 1), dtype=bool)
+        if amp is not None:
+            use_amp = amp.sum(axis=1)[:, None] < 0.25 * half_dt2[None, :] * curv.sum(axis=1)[:, None]
+        KU[:, :, sl] = np.where(use_amp[:, :, None], amp[:, None, :] if amp is not None else 0.0, 0.0)
+        KP[:, :, sl] = np.where(use_amp[:, :, None], 0.0, half_dt2[None, :, None] * curv[:, None, :])
+    return KU * (1.0 + MARGIN), KP * (1.0 + MARGIN), K3 * (1.0 + MARGIN)
+
+
+def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
+                     levels: int) -> tuple[np.ndarray, ...]:
+    """The kernel's in-step event bounds of every stick configuration of stacked parts.
+
+    Parameters
+    ----------
+    PE : ndarray, shape (n_parts, 2**nf, nx, nz)
+        ``[A_c B_c]`` of each configuration (see :func:`sicomat.simulate.continuous._constrained_all`).
+    L : ndarray, shape (n_parts, 2**nf, nf, nz)
+        Holding-force rows.
+    G : ndarray, shape (n_parts, nf, nx)
+        Sliding-velocity rows.
+    step : float
+        Base step h (s): the bounds hold over any segment of length <= h.
+    levels : int
+        Sub-steps ``h / 2**l``, ``l = 0..levels``.
+
+    Returns
+    -------
+    PsiT : ndarray, shape (n_parts, 2**nf, nz, nx)
+        ``Psiᵀ`` (the kernel computes ``ξ = Psi z`` column-wise).
+    KU, KP : ndarray, shape (n_parts, 2**nf, nf, levels + 1, nx)
+        On a sub-step of level ``l`` of a segment in configuration ``c``, link ``j``'s event
+        function (holding force when stuck in c, else velocity) lies within
+        ``KU[c, j, l] @ |ξ| + τ (1 - τ) KP[c, j, l] @ |ξ|`` of its chord.
+    K3 : ndarray, shape (n_parts, 2**nf, nf, nx)
+        ``sup |g_j'''| <= K3[c, j] @ |ξ|`` over the segment.
+    D : ndarray, shape (n_parts, 2**nf, nf, 2, nz)
+        ``g_j' = D[c, j, 0] @ z`` and ``g_j'' = D[c, j, 1] @ z`` at any instant of a segment.
+    pair : ndarray of int8, shape (n_parts, 2**nf, nx)
+        1 where coordinates ``i, i+1`` form a Euclidean pair (``|ξ|_i`` is their norm, the
+        coefficients at ``i + 1`` are 0), else 0.
+    """
+    n_parts, nc, nx, nz = PE.shape
+    nf = L.shape[2]
+    PsiT = np.zeros((n_parts, nc, nz, nx))
+    KU = np.zeros((n_parts, nc, nf, levels + 1, nx))
+    KP = np.zeros((n_parts, nc, nf, levels + 1, nx))
+    K3 = np.zeros((n_parts, nc, nf, nx))
+    D = np.zeros((n_parts, nc, nf, 2, nz))
+    pair = np.zeros((n_parts, nc, nx), dtype=np.int8)
+    for v in range(n_parts):
+        for c in range(nc):
+            A = PE[v, c, :, :nx]
+            S, Y, blocks = _decompose(A, step)
+            PsiT[v, c] = (Y @ PE[v, c]).T
+            for start, size, euclid in blocks:
+                if euclid and size == 2:
+                    pair[v, c, start] = 1
+            R = np.array([L[v, c, j, :nx] if (c >> j) & 1 else G[v, j] for j in range(nf)])
+            KU[v, c], KP[v, c], K3[v, c] = _coefficients(R, Y, S, A, blocks, step, levels)
+            D[v, c, :, 0] = R @ PE[v, c]
+            D[v, c, :, 1] = (R @ A) @ PE[v, c]
+    return tuple(np.ascontiguousarray(a) for a in (PsiT, KU, KP, K3, D, pair))
