@@ -54,24 +54,25 @@ def _rotation_basis(v: np.ndarray) -> np.ndarray:
     return Q / np.linalg.norm(Q[:, 0])
 
 
-def _fast_blocks(T: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, bool]]] | None:
+def _fast_blocks(T: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, str]]] | None:
     """Real modal basis ``Q`` of ``T`` (all eigenvalues fast): one column per real eigenvalue, two
-    per complex pair; None when the eigenvalues cluster or the basis is ill-conditioned."""
+    per complex pair; None when eigenvalues cluster or the basis is ill-conditioned."""
     n = T.shape[0]
     lam, V = np.linalg.eig(T)
+    dist = np.abs(lam[:, None] - lam[None, :])
+    np.fill_diagonal(dist, np.inf)
+    conj = np.abs(lam[:, None] - np.conj(lam)[None, :]) <= 1e-12 * np.abs(lam)[:, None]
+    dist[conj & (lam.imag != 0)[:, None]] = np.inf       # a pair's two members belong together
+    if np.any(dist.min(axis=1) <= _CLUSTER * np.abs(lam)):
+        return None
     cols, blocks = [], []
-    for i in range(n):
-        if lam[i].imag < 0:
-            continue
-        others = np.delete(lam, [i, int(np.argmin(np.abs(lam - np.conj(lam[i]))))] if lam[i].imag > 0 else [i])
-        if others.size and np.min(np.abs(others - lam[i])) <= _CLUSTER * abs(lam[i]):
-            return None
+    for i in np.flatnonzero(lam.imag >= 0):
         if lam[i].imag > 0:
-            blocks.append((len(cols), 2, True))
+            blocks.append((len(cols), 2, "euclid"))
             Q = _rotation_basis(V[:, i])
             cols += [Q[:, 0], Q[:, 1]]
         else:
-            blocks.append((len(cols), 1, True))
+            blocks.append((len(cols), 1, "euclid"))
             cols.append(V[:, i].real / np.linalg.norm(V[:, i].real))
     if len(cols) != n:
         return None
@@ -81,8 +82,10 @@ def _fast_blocks(T: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, bool]]
     return Q, blocks
 
 
-def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int, bool]]]:
-    """``S``, ``Y = S⁻¹`` and blocks ``(start, size, euclidean)`` with ``Y A S`` block diagonal.
+def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int, str]]]:
+    """``S``, ``Y = S⁻¹`` and blocks ``(start, size, kind)`` with ``Y A S`` block diagonal; kind
+    ``"euclid"``: one real mode or a pair in real modal form, ``"slow"``: the general block of the
+    slow eigenvalues, ``"general"``: fast eigenvalues that did not separate.
 
     An ordered real Schur form puts the slow eigenvalues (``|λ| h <= SLOW``) first; a Sylvester
     equation decouples them from the fast ones, which are then diagonalised (real modal form).
@@ -91,16 +94,16 @@ def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tu
     slow = lambda re, im: bool(math.hypot(re, im) * h <= SLOW)  # noqa: E731
     T, Z, k = scipy.linalg.schur(A, output="real", sort=slow)
     if k == n:
-        return np.eye(n), np.eye(n), [(0, n, False)]
+        return np.eye(n), np.eye(n), [(0, n, "slow")]
     X = np.zeros((k, n - k))
     if k:
         try:
             X = scipy.linalg.solve_sylvester(T[:k, :k], -T[k:, k:], -T[:k, k:])
         except (np.linalg.LinAlgError, ValueError):
-            return np.eye(n), np.eye(n), [(0, n, False)]
+            return np.eye(n), np.eye(n), [(0, n, "slow")]
     fast = _fast_blocks(T[k:, k:])
     if fast is None:
-        Q, fblocks = np.eye(n - k), [(0, n - k, False)]
+        Q, fblocks = np.eye(n - k), [(0, n - k, "general")]
     else:
         Q, fblocks = fast
     # S = Z [[I, X], [0, I]] diag(I, Q);  Y = diag(I, Q⁻¹) [[I, -X], [0, I]] Zᵀ
@@ -110,8 +113,8 @@ def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tu
     Y[:k] -= X @ Z[:, k:].T
     Y[k:] = np.linalg.solve(Q, Z[:, k:].T)
     if not np.isfinite(S).all() or np.linalg.cond(S) > _COND_MAX:
-        return np.eye(n), np.eye(n), [(0, n, False)]
-    blocks = ([(0, k, False)] if k else []) + [(k + st, sz, eu) for st, sz, eu in fblocks]
+        return np.eye(n), np.eye(n), [(0, n, "slow")]
+    blocks = ([(0, k, "slow")] if k else []) + [(k + st, sz, kind) for st, sz, kind in fblocks]
     return S, Y, blocks
 
 
@@ -150,7 +153,7 @@ def _taylor_sup(q: np.ndarray, T: np.ndarray, h: float) -> np.ndarray:
 
 
 def _coefficients(R: np.ndarray, Y: np.ndarray, S: np.ndarray, A: np.ndarray,
-                  blocks: list[tuple[int, int, bool]], h: float,
+                  blocks: list[tuple[int, int, str]], h: float,
                   levels: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``KU, KP`` (shape ``(n_rows, levels + 1, nx)``) and ``K3`` (shape ``(n_rows, nx)``) of the
     event rows ``R`` (state parts).
@@ -168,18 +171,19 @@ def _coefficients(R: np.ndarray, Y: np.ndarray, S: np.ndarray, A: np.ndarray,
     K3 = np.zeros((n_rows, nx))
     half_dt2 = 0.5 * (h / 2.0 ** np.arange(levels + 1)) ** 2
     RS = R @ S
-    # the general block at 0 holds the slow eigenvalues, unless the fast ones failed to separate
-    first = slice(0, blocks[0][1])
-    slow_first = not blocks[0][2] and np.abs(np.linalg.eigvals(Y[first] @ A @ S[:, first])).min() * h <= SLOW
-    for start, size, euclid in blocks:
+    AS = A @ S
+    for start, size, kind in blocks:
         sl = slice(start, start + size)
-        T = Y[sl] @ A @ S[:, sl]
-        slow = start == 0 and not euclid and slow_first
+        T = Y[sl] @ AS[:, sl]
         Q2 = RS[:, sl] @ T                              # g_b'' = q e^{Tt} ξ_b
         Q3 = Q2 @ T
-        Q0 = None if slow else RS[:, sl] @ np.linalg.inv(T)   # g_b = p e^{Tt} ξ_b + constant
-        if euclid:
-            mu = np.linalg.eigvalsh(0.5 * (T + T.T)).max()
+        Q0 = None if kind == "slow" else RS[:, sl] @ np.linalg.inv(T)   # g_b = p e^{Tt} ξ_b + c
+        if kind == "euclid":
+            if size == 1:
+                mu = T[0, 0]
+            else:                                       # largest eigenvalue of (T + Tᵀ) / 2
+                a, b, d = T[0, 0], 0.5 * (T[0, 1] + T[1, 0]), T[1, 1]
+                mu = 0.5 * (a + d) + math.hypot(0.5 * (a - d), b)
             grow = max(1.0, math.exp(min(mu * h, 700.0)))
             curv = np.zeros((n_rows, size))
             curv[:, 0] = np.linalg.norm(Q2, axis=1) * grow
@@ -247,8 +251,8 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
             A = PE[v, c, :, :nx]
             S, Y, blocks = _decompose(A, step)
             PsiT[v, c] = (Y @ PE[v, c]).T
-            for start, size, euclid in blocks:
-                if euclid and size == 2:
+            for start, size, kind in blocks:
+                if kind == "euclid" and size == 2:
                     pair[v, c, start] = 1
             R = np.array([L[v, c, j, :nx] if (c >> j) & 1 else G[v, j] for j in range(nf)])
             KU[v, c], KP[v, c], K3[v, c] = _coefficients(R, Y, S, A, blocks, step, levels)
