@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 import scipy.linalg
+from numba import njit
 
 __all__ = ["SLOW", "MARGIN", "curvature_bounds"]
 
@@ -77,9 +78,18 @@ def _fast_blocks(T: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, str]]]
     if len(cols) != n:
         return None
     Q = np.column_stack(cols)
-    if np.linalg.cond(Q) > _COND_MAX:
+    try:
+        Qinv = np.linalg.inv(Q)
+    except np.linalg.LinAlgError:
+        return None
+    if _cond1(Q, Qinv) > _COND_MAX:
         return None
     return Q, blocks
+
+
+def _cond1(M: np.ndarray, Minv: np.ndarray) -> float:
+    """The 1-norm condition number from a matrix and its inverse."""
+    return float(np.abs(M).sum(axis=0).max() * np.abs(Minv).sum(axis=0).max())
 
 
 def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int, str]]]:
@@ -97,10 +107,11 @@ def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tu
         return np.eye(n), np.eye(n), [(0, n, "slow")]
     X = np.zeros((k, n - k))
     if k:
-        try:
-            X = scipy.linalg.solve_sylvester(T[:k, :k], -T[k:, k:], -T[:k, k:])
-        except (np.linalg.LinAlgError, ValueError):
+        # T11 X - X T22 = -T12 on the quasi-triangular blocks of the Schur form
+        X, scale, info = scipy.linalg.lapack.dtrsyl(T[:k, :k], T[k:, k:], -T[:k, k:], isgn=-1)
+        if info < 0 or not scale > 0:
             return np.eye(n), np.eye(n), [(0, n, "slow")]
+        X = X / scale
     fast = _fast_blocks(T[k:, k:])
     if fast is None:
         Q, fblocks = np.eye(n - k), [(0, n - k, "general")]
@@ -112,51 +123,107 @@ def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tu
     Y = Z.T.copy()
     Y[:k] -= X @ Z[:, k:].T
     Y[k:] = np.linalg.solve(Q, Z[:, k:].T)
-    if not np.isfinite(S).all() or np.linalg.cond(S) > _COND_MAX:
+    if not (np.isfinite(S).all() and np.isfinite(Y).all()) or _cond1(S, Y) > _COND_MAX:
         return np.eye(n), np.eye(n), [(0, n, "slow")]
     blocks = ([(0, k, "slow")] if k else []) + [(k + st, sz, kind) for st, sz, kind in fblocks]
     return S, Y, blocks
 
 
-def _taylor_sup(q: np.ndarray, T: np.ndarray, h: float) -> np.ndarray:
-    """Componentwise ``sup_{0<=t<=h} |(q e^{T t})_i|``, rigorous: on a grid of ``t_k`` with
-    ``Δt ||T||_∞ <= 0.5``, ``|(v_k e^{Ts})_i| <= Σ_n Δt^n/n! |(v_k T^n)_i|`` plus the series' tail."""
-    q = np.atleast_2d(q)
+_SLOW_BLOCK, _GENERAL_BLOCK, _EUCLID_BLOCK = 0, 1, 2
+_KINDS = {"slow": _SLOW_BLOCK, "general": _GENERAL_BLOCK, "euclid": _EUCLID_BLOCK}
+
+
+@njit(cache=True)
+def _balance(T):
+    """``Tb = D⁻¹ T D`` with a diagonal ``D`` of powers of 2 that evens row and column norms
+    (Parlett–Reinsch, as LAPACK's gebal without permutations); returns ``Tb, diag(D)``."""
     m = T.shape[0]
-    if not np.any(q):
-        return np.zeros(q.shape)
-    # a diagonal scaling (balancing) lowers ||T||_∞ and so the grid: T = D Tb D⁻¹, so
-    # q e^{Tt} = (q D) e^{Tb t} D⁻¹
-    Tb, (d, _) = scipy.linalg.matrix_balance(T, permute=False, separate=True)
-    d = np.asarray(d, dtype=float)
-    norm = np.abs(Tb).sum(axis=1).max()
+    Tb = T.copy()
+    d = np.ones(m)
+    done = False
+    while not done:
+        done = True
+        for i in range(m):
+            c = 0.0
+            r = 0.0
+            for j in range(m):
+                if j != i:
+                    c += abs(Tb[j, i])
+                    r += abs(Tb[i, j])
+            if c == 0.0 or r == 0.0:
+                continue
+            s = c + r
+            f = 1.0
+            g = r / 2.0
+            while c < g:
+                f *= 2.0
+                c *= 4.0
+            g = r * 2.0
+            while c > g:
+                f /= 2.0
+                c /= 4.0
+            if (c + r) / f < 0.95 * s:
+                done = False
+                d[i] *= f
+                for j in range(m):
+                    Tb[j, i] *= f
+                    Tb[i, j] /= f
+    return Tb, d
+
+
+@njit(cache=True)
+def _taylor_sup(Q, T, h):
+    """Componentwise ``sup_{0<=t<=h} |(q e^{T t})_i|`` for each row ``q`` of ``Q``, rigorous: on
+    a grid of ``t_k`` with ``Δt ||T||_∞ <= 0.5``, ``|(v_k e^{Ts})_i| <= Σ_n Δt^n/n! |(v_k T^n)_i|``
+    plus the series' tail. A diagonal scaling (balancing, ``T = D Tb D⁻¹``, so
+    ``q e^{Tt} = (q D) e^{Tb t} D⁻¹``) lowers ``||T||_∞`` and so the grid."""
+    n_rows, m = Q.shape
+    out = np.zeros((n_rows, m))
+    if m == 0:
+        return out
+    Tb, d = _balance(T)
+    norm = 0.0
+    for i in range(m):
+        s = 0.0
+        for j in range(m):
+            s += abs(Tb[i, j])
+        norm = max(norm, s)
     n_grid = max(1, int(math.ceil(h * norm / _TAYLOR_STEP)))
     if n_grid > _GRID_MAX:
-        return np.full(q.shape, np.inf)
+        out[:, :] = np.inf
+        return out
     dt = h / n_grid
-    V = np.empty((n_grid, q.shape[0], m))          # v_k = q D e^{Tb t_k}, every row of q
-    V[0] = q * d
-    if n_grid > 1:
-        E = scipy.linalg.expm(Tb * dt)
-        for k in range(1, n_grid):
-            V[k] = V[k - 1] @ E
-    acc = np.abs(V)
-    W = V
-    for k in range(1, _TAYLOR_TERMS + 1):
-        W = W @ Tb
-        acc += np.abs(W) * (dt ** k / math.factorial(k))
-    W = W @ Tb
+    # e^{Tb dt} by its Taylor series (dt ||Tb|| <= 0.5: 20 terms reach the rounding level)
+    E = np.eye(m)
+    term = np.eye(m)
+    for k in range(1, 21):
+        term = term @ Tb * (dt / k)
+        E = E + term
     rho = dt * norm
-    tail = (np.abs(W).sum(axis=2) * (dt ** (_TAYLOR_TERMS + 1) / math.factorial(_TAYLOR_TERMS + 1))
-            / (1.0 - rho / (_TAYLOR_TERMS + 2)))
-    return (acc + tail[:, :, None]).max(axis=0) / d
+    fact = np.empty(_TAYLOR_TERMS + 2)
+    fact[0] = 1.0
+    for k in range(1, _TAYLOR_TERMS + 2):
+        fact[k] = fact[k - 1] * dt / k
+    for r in range(n_rows):
+        v = Q[r] * d
+        for _ in range(n_grid):
+            acc = np.abs(v)
+            w = v.copy()
+            for k in range(1, _TAYLOR_TERMS + 1):
+                w = w @ Tb
+                acc += np.abs(w) * fact[k]
+            w = w @ Tb
+            tail = np.abs(w).sum() * fact[_TAYLOR_TERMS + 1] / (1.0 - rho / (_TAYLOR_TERMS + 2))
+            for i in range(m):
+                out[r, i] = max(out[r, i], (acc[i] + tail) / d[i])
+            v = v @ E
+    return out
 
 
-def _coefficients(R: np.ndarray, Y: np.ndarray, S: np.ndarray, A: np.ndarray,
-                  blocks: list[tuple[int, int, str]], h: float,
-                  levels: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@njit(cache=True)
+def _coefficients(R, Y, S, A, bstart, bsize, bkind, h, levels):
     """``KU, KP`` (shape ``(n_rows, levels + 1, nx)``) and ``K3`` (shape ``(n_rows, nx)``) of the
-    event rows ``R`` (state parts).
+    event rows ``R`` (state parts), blocks ``bstart, bsize, bkind`` of :func:`_decompose`.
 
     On a sub-step of length ``δ_l = h / 2**l`` of a segment, ``g`` deviates from its chord by at
     most ``KU[l] @ |ξ| + τ(1 - τ) KP[l] @ |ξ|`` (``τ`` the fraction of the sub-step). A block
@@ -164,45 +231,54 @@ def _coefficients(R: np.ndarray, Y: np.ndarray, S: np.ndarray, A: np.ndarray,
     when smaller, twice its amplitude ``sup|g_b|`` to ``KU`` (a fast block's part of ``g`` is
     ``r S_b T_b⁻¹ e^{T_b t} ξ_b``: it lies within twice its amplitude of any chord).
     ``sup |g'''| <= K3 @ |ξ|`` over the segment bounds the remainder of the Taylor polynomial
-    of degree 2 at a sub-step's start."""
+    of degree 2 at a sub-step's start. Compiled: a batch has one set per variant and configuration.
+    """
     n_rows, nx = R.shape[0], S.shape[1]
     KU = np.zeros((n_rows, levels + 1, nx))
     KP = np.zeros((n_rows, levels + 1, nx))
     K3 = np.zeros((n_rows, nx))
-    half_dt2 = 0.5 * (h / 2.0 ** np.arange(levels + 1)) ** 2
+    half_dt2 = np.empty(levels + 1)
+    for lev in range(levels + 1):
+        dl = h / 2.0 ** lev
+        half_dt2[lev] = 0.5 * dl * dl
     RS = R @ S
     AS = A @ S
-    for start, size, kind in blocks:
-        sl = slice(start, start + size)
-        T = Y[sl] @ AS[:, sl]
-        Q2 = RS[:, sl] @ T                              # g_b'' = q e^{Tt} ξ_b
+    for b in range(bstart.shape[0]):
+        st, sz, kind = bstart[b], bsize[b], bkind[b]
+        T = np.ascontiguousarray(Y[st:st + sz]) @ np.ascontiguousarray(AS[:, st:st + sz])
+        Rb = np.ascontiguousarray(RS[:, st:st + sz])
+        Q2 = Rb @ T                              # g_b'' = q e^{Tt} ξ_b
         Q3 = Q2 @ T
-        Q0 = None if kind == "slow" else RS[:, sl] @ np.linalg.inv(T)   # g_b = p e^{Tt} ξ_b + c
-        if kind == "euclid":
-            if size == 1:
+        has_amp = kind != _SLOW_BLOCK
+        Q0 = Rb @ np.linalg.inv(T) if has_amp else Rb   # g_b = p e^{Tt} ξ_b + constant
+        curv = np.zeros((n_rows, sz))
+        amp = np.zeros((n_rows, sz))
+        if kind == _EUCLID_BLOCK:
+            if sz == 1:
                 mu = T[0, 0]
-            else:                                       # largest eigenvalue of (T + Tᵀ) / 2
-                a, b, d = T[0, 0], 0.5 * (T[0, 1] + T[1, 0]), T[1, 1]
-                mu = 0.5 * (a + d) + math.hypot(0.5 * (a - d), b)
+            else:                                # largest eigenvalue of (T + Tᵀ) / 2
+                a, c, e = T[0, 0], 0.5 * (T[0, 1] + T[1, 0]), T[1, 1]
+                mu = 0.5 * (a + e) + math.hypot(0.5 * (a - e), c)
             grow = max(1.0, math.exp(min(mu * h, 700.0)))
-            curv = np.zeros((n_rows, size))
-            curv[:, 0] = np.linalg.norm(Q2, axis=1) * grow
-            K3[:, start] = np.linalg.norm(Q3, axis=1) * grow
-            amp = None
-            if Q0 is not None:
-                amp = np.zeros((n_rows, size))
-                amp[:, 0] = 2.0 * np.linalg.norm(Q0, axis=1) * grow
+            for r in range(n_rows):
+                curv[r, 0] = np.sqrt(np.sum(Q2[r] ** 2)) * grow
+                K3[r, st] = np.sqrt(np.sum(Q3[r] ** 2)) * grow
+                amp[r, 0] = 2.0 * np.sqrt(np.sum(Q0[r] ** 2)) * grow
         else:
-            sups = _taylor_sup(np.vstack([Q2, Q3] + ([] if Q0 is None else [Q0])), T, h)
-            curv, K3[:, sl] = sups[:n_rows], sups[n_rows:2 * n_rows]
-            amp = None if Q0 is None else 2.0 * sups[2 * n_rows:]
-        # per level, the smaller of the two (the parabola's largest value is a quarter of C)
-        use_amp = np.zeros((n_rows, levels + 1), dtype=bool)
-        if amp is not None:
-            use_amp = amp.sum(axis=1)[:, None] < 0.25 * half_dt2[None, :] * curv.sum(axis=1)[:, None]
-        KU[:, :, sl] = np.where(use_amp[:, :, None], amp[:, None, :] if amp is not None else 0.0, 0.0)
-        KP[:, :, sl] = np.where(use_amp[:, :, None], 0.0, half_dt2[None, :, None] * curv[:, None, :])
-    return KU * (1.0 + MARGIN), KP * (1.0 + MARGIN), K3 * (1.0 + MARGIN)
+            curv = _taylor_sup(Q2, T, h)
+            K3[:, st:st + sz] = _taylor_sup(Q3, T, h)
+            if has_amp:
+                amp = 2.0 * _taylor_sup(Q0, T, h)
+        # per level the smaller of the two (the parabola's largest value is a quarter of C)
+        for r in range(n_rows):
+            a_sum = amp[r].sum()
+            c_sum = curv[r].sum()
+            for lev in range(levels + 1):
+                if has_amp and a_sum < 0.25 * half_dt2[lev] * c_sum:
+                    KU[r, lev, st:st + sz] = amp[r] * (1.0 + MARGIN)
+                else:
+                    KP[r, lev, st:st + sz] = curv[r] * (half_dt2[lev] * (1.0 + MARGIN))
+    return KU, KP, K3 * (1.0 + MARGIN)
 
 
 def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
@@ -255,7 +331,12 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
                 if kind == "euclid" and size == 2:
                     pair[v, c, start] = 1
             R = np.array([L[v, c, j, :nx] if (c >> j) & 1 else G[v, j] for j in range(nf)])
-            KU[v, c], KP[v, c], K3[v, c] = _coefficients(R, Y, S, A, blocks, step, levels)
+            bstart, bsize, bkind = (np.array(col, dtype=np.int64) for col in zip(
+                *((st, sz, _KINDS[kind]) for st, sz, kind in blocks)))
+            KU[v, c], KP[v, c], K3[v, c] = _coefficients(R, np.ascontiguousarray(Y),
+                                                         np.ascontiguousarray(S),
+                                                         np.ascontiguousarray(A), bstart, bsize,
+                                                         bkind, float(step), int(levels))
             D[v, c, :, 0] = R @ PE[v, c]
             D[v, c, :, 1] = (R @ A) @ PE[v, c]
     return tuple(np.ascontiguousarray(a) for a in (PsiT, KU, KP, K3, D, pair))
