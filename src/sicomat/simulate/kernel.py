@@ -707,7 +707,7 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                 k_bad = k
                 break
 
-        # (5) advance the continuous state to t_{k+1}: the whole step, bisected if it holds an event
+        # (5) advance the continuous state to t_{k+1}: the whole step, subdivided if it holds or may hold an event
         for i in range(nx, nz):
             zc[i] = z[i]
         # (an event inside the step is possible when one is past its event at the step's end, or
@@ -885,7 +885,11 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
     (4) records; (5) exact advance to ``t_{k+1}``. In (5) each friction link is stuck (its
     constraint force holds it) or slides with ``f = -coulomb * d`` (``d`` its direction of
     motion); a sliding link whose velocity reverses, or a stuck link whose force exceeds
-    ``static``, is an event, located by bisection over binary fractions of h. At an event, the
+    ``static``, is an event, located over binary fractions of h: a (sub-)step is halved while an
+    event condition holds at its end or the in-step envelope of an event function (from the
+    modal magnitudes of the state derivative, :mod:`sicomat.simulate.envelope`) cannot exclude
+    one inside, so no point of the finest grid ``h / 2**levels`` where a condition holds is
+    skipped, and an excursion lasting longer than one finest sub-step is always found. At an event, the
     links whose velocity reached zero are projected onto ``v = 0`` and stick if the holding force
     is within ``static``; otherwise they slide against that force. Links with ``coulomb = static
     = 0`` are ignored.
