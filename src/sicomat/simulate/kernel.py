@@ -199,6 +199,18 @@ def _propagate(PGT, c, lev, z, out, nx):
 
 
 @njit(cache=True, error_model="numpy", inline='always')
+def _propagate_rows(MT, c, z, out, nx):
+    """``out[:nx] = MT[c].T @ z``, column-wise as :func:`_propagate`."""
+    z0 = z[0]
+    for i in range(nx):
+        out[i] = 0.0 + MT[c, 0, i] * z0
+    for j in range(1, z.shape[0]):
+        zj = z[j]
+        for i in range(nx):
+            out[i] += MT[c, j, i] * zj
+
+
+@njit(cache=True, error_model="numpy", inline='always')
 def _dot(a, b, n):
     """``a[:n] @ b[:n]`` in four partial sums: one chain of additions would wait on each one's latency
     (these dot products decide stick and slip at every step)."""
@@ -296,18 +308,12 @@ def _link_values(zc, c, stuck, dirn, Lz, G, static, nx, vals):
     return event
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline='always')
 def _modal_magnitudes(PsiT, pair, c, z, nx, xi):
     """``xi = |Psi[c] z|``: the magnitudes of the modal coordinates of the state derivative
     (the Euclidean norm of each modal pair at its first index, 0 at its second), from which the
     in-step envelopes of every link follow (see :mod:`sicomat.simulate.envelope`)."""
-    nz = z.shape[0]
-    for i in range(nx):
-        xi[i] = 0.0 + PsiT[c, 0, i] * z[0]
-    for m in range(1, nz):
-        zm = z[m]
-        for i in range(nx):
-            xi[i] += PsiT[c, m, i] * zm
+    _propagate_rows(PsiT, c, z, xi, nx)
     for i in range(nx):
         if pair[c, i] == 1:
             xi[i] = np.sqrt(xi[i] * xi[i] + xi[i + 1] * xi[i + 1])
@@ -398,8 +404,9 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
     """Advance ``z`` over one base step whose full-step candidate ``zc`` (event values ``g1``,
     ``end_event`` whether one is past its event) contains an event or could.
 
-    Sub-steps are binary fractions ``h / 2**l``, taken in time order: the largest fraction that
-    fits in the rest of the step is tried and halved while it may hold an event, i.e. while an
+    Sub-steps are binary fractions ``h / 2**l``, taken in time order: a fraction twice the last
+    one taken (the whole step at first), or the largest that fits in the rest of the step, is
+    tried and halved while it may hold an event, i.e. while an
     event function is past its event at its end, or its chord and interpolation envelope (from
     the modal magnitudes ``xi`` at the segment's start) cross the threshold inside. A finest sub-step is taken in any
     case; an event at its end is resolved there (and the bounds recomputed in the new
@@ -416,9 +423,10 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
     first = True
     _link_values(z, cfg, stuck, dirn, Lz, G, static, nx, g0)
     _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
+    grow = 0                   # the level to try next: one coarser than the last one taken
     while pos < total:
         rem = total - pos
-        lev = 0
+        lev = grow
         while (1 << (levels - lev)) > rem:
             lev += 1
         while True:
@@ -441,6 +449,7 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
         for i in range(nx):
             z[i] = zc[i]
         pos += 1 << (levels - lev)
+        grow = lev - 1 if lev > 0 else 0
         if event:
             cfg = _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp)
             for i in range(nx, nz):
@@ -707,7 +716,8 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                 k_bad = k
                 break
 
-        # (5) advance the continuous state to t_{k+1}: the whole step, subdivided if it holds or may hold an event
+        # (5) advance the continuous state to t_{k+1}: the whole step, subdivided if it holds or
+        # may hold an event
         for i in range(nx, nz):
             zc[i] = z[i]
         # (an event inside the step is possible when one is past its event at the step's end, or
