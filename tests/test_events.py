@@ -152,7 +152,7 @@ def test_envelopes_bound_the_event_functions_of_every_configuration():
     d = [constrained_dynamics(cont, c) for c in (0, 1)]
     PE = np.array([[np.hstack([dc.A, dc.B]) for dc in d]])
     L = np.array([[np.hstack([dc.Lx, dc.Lu, dc.Lf]) for dc in d]])
-    PsiT, KU, KP, K3, D, pair = curvature_bounds(PE, L, np.asarray(cont.G)[None], h, LEVELS)
+    PsiT, KU, KP, K3, D, pair, _, _ = curvature_bounds(PE, L, np.asarray(cont.G)[None], h, LEVELS)
     rng = np.random.default_rng(5)
     nx, nz = 4, 6
     for c in (0, 1):

@@ -281,6 +281,63 @@ def _coefficients(R, Y, S, A, bstart, bsize, bkind, h, levels):
     return KU, KP, K3 * (1.0 + MARGIN)
 
 
+@njit(cache=True)
+def _expm(T, t):
+    """``e^{T t}`` by scaling, a Taylor series and squaring (small blocks; the rounding of the
+    result is covered by :data:`MARGIN`)."""
+    m = T.shape[0]
+    norm = 0.0
+    for i in range(m):
+        norm = max(norm, np.abs(T[i]).sum() * t)
+    s = 0
+    while norm > 0.5:
+        norm /= 2.0
+        s += 1
+    M = T * (t / 2.0 ** s)
+    E = np.eye(m)
+    term = np.eye(m)
+    for k in range(1, 21):
+        term = term @ M / k
+        E = E + term
+    for _ in range(s):
+        E = E @ E
+    return E
+
+
+@njit(cache=True)
+def _growth(Y, S, A, Bu, bstart, bsize, bkind, h):
+    """Bounds that carry the modal magnitudes ``|ξ|`` of the state derivative over one whole step
+    and the latch of new inputs: ``|ξ(t + h)| <= G |ξ(t)| + H |Δu|`` componentwise (each pair by
+    its Euclidean norm). Returns ``[G H]`` (``G`` dense on ``[:kd, :kd]``, its diagonal from
+    column ``nx`` on for ``i >= kd``; ``H`` from column ``nx + 1``) and ``kd``, the extent of the
+    leading general blocks (the Euclidean ones follow, each carried by its growth
+    ``e^{μ h}``, ``μ`` its logarithmic norm)."""
+    nx = S.shape[1]
+    nu = Bu.shape[1]
+    out = np.zeros((nx, nx + 1 + nu))
+    kd = 0
+    YB = Y @ Bu
+    AS = A @ S
+    for b in range(bstart.shape[0]):
+        st, sz, kind = bstart[b], bsize[b], bkind[b]
+        T = np.ascontiguousarray(Y[st:st + sz]) @ np.ascontiguousarray(AS[:, st:st + sz])
+        if kind == _EUCLID_BLOCK:
+            if sz == 1:
+                mu = T[0, 0]
+            else:
+                a, c, e = T[0, 0], 0.5 * (T[0, 1] + T[1, 0]), T[1, 1]
+                mu = 0.5 * (a + e) + math.hypot(0.5 * (a - e), c)
+            out[st, nx] = math.exp(min(mu * h, 700.0)) * (1.0 + MARGIN)
+            for m in range(nu):
+                out[st, nx + 1 + m] = np.sqrt(np.sum(YB[st:st + sz, m] ** 2)) * (1.0 + MARGIN)
+        else:
+            kd = st + sz          # the general blocks come first (see _decompose)
+            E = np.abs(_expm(T, h)) * (1.0 + MARGIN)
+            out[st:st + sz, st:st + sz] = E
+            out[st:st + sz, nx + 1:] = np.abs(YB[st:st + sz]) * (1.0 + MARGIN)
+    return out, kd
+
+
 def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
                      levels: int) -> tuple[np.ndarray, ...]:
     """The kernel's in-step event bounds of every stick configuration of stacked parts.
@@ -313,6 +370,9 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
     pair : ndarray of int8, shape (n_parts, 2**nf, nx)
         1 where coordinates ``i, i+1`` form a Euclidean pair (``|ξ|_i`` is their norm, the
         coefficients at ``i + 1`` are 0), else 0.
+    GH, kd : ndarray, shapes (n_parts, 2**nf, nx, nx + 1 + nu) and (n_parts, 2**nf)
+        The bounds of :func:`_growth` that carry ``|ξ|`` from step to step (the kernel then
+        projects the state only when the carried bound cannot clear a step).
     """
     n_parts, nc, nx, nz = PE.shape
     nf = L.shape[2]
@@ -322,6 +382,9 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
     K3 = np.zeros((n_parts, nc, nf, nx))
     D = np.zeros((n_parts, nc, nf, 2, nz))
     pair = np.zeros((n_parts, nc, nx), dtype=np.int8)
+    nu = nz - nx - nf
+    GH = np.zeros((n_parts, nc, nx, nx + 1 + nu))
+    kd = np.zeros((n_parts, nc), dtype=np.int64)
     for v in range(n_parts):
         for c in range(nc):
             A = PE[v, c, :, :nx]
@@ -339,4 +402,8 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
                                                          bkind, float(step), int(levels))
             D[v, c, :, 0] = R @ PE[v, c]
             D[v, c, :, 1] = (R @ A) @ PE[v, c]
-    return tuple(np.ascontiguousarray(a) for a in (PsiT, KU, KP, K3, D, pair))
+            GH[v, c], kd[v, c] = _growth(np.ascontiguousarray(Y), np.ascontiguousarray(S),
+                                         np.ascontiguousarray(A),
+                                         np.ascontiguousarray(PE[v, c, :, nx:nx + nu]),
+                                         bstart, bsize, bkind, float(step))
+    return tuple(np.ascontiguousarray(a) for a in (PsiT, KU, KP, K3, D, pair, GH, kd))

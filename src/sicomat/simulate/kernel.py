@@ -323,6 +323,27 @@ def _modal_magnitudes(PsiT, pair, c, z, nx, xi):
 
 
 @njit(cache=True, error_model="numpy", inline='always')
+def _carry(GH, kd, c, xi, du, nx, nu, xt):
+    """``xi <- G xi + H du`` (:func:`sicomat.simulate.envelope._growth`): bounds of the modal
+    magnitudes one step later, after the latch of an input that changed by ``du``; dense on the
+    general blocks ``[:kd]``, diagonal on the Euclidean ones."""
+    k = kd[c]
+    for i in range(k):
+        s = 0.0
+        for j in range(k):
+            s += GH[c, i, j] * xi[j]
+        xt[i] = s
+    for i in range(k, nx):
+        xt[i] = GH[c, i, nx] * xi[i]
+    for m in range(nu):
+        dm = du[m]
+        for i in range(nx):
+            xt[i] += GH[c, i, nx + 1 + m] * dm
+    for i in range(nx):
+        xi[i] = xt[i]
+
+
+@njit(cache=True, error_model="numpy", inline='always')
 def _may_cross(a, b, U, C):
     """Whether ``p(τ) = a + (b - a) τ - U - C τ (1 - τ)`` (``U, C >= 0``) dips below 0 for some
     ``τ`` in [0, 1]: the chord of a function from ``a`` to ``b`` minus its envelope."""
@@ -342,8 +363,11 @@ def _envelope_clear(g0, g1, xi, KU, KP, c, lev, stuck, static, nx):
     the event values ``g0``, ``g1`` (none past its event), ``xi`` the modal magnitudes at the
     segment's start."""
     for j in range(stuck.shape[0]):
-        U = _dot(KU[c, j, lev], xi, nx)
-        C = _dot(KP[c, j, lev], xi, nx)
+        U = 0.0
+        C = 0.0
+        for i in range(nx):
+            U += KU[c, j, lev, i] * xi[i]
+            C += KP[c, j, lev, i] * xi[i]
         if stuck[j]:
             s = static[j]
             if _may_cross(s - g0[j], s - g1[j], U, C) or _may_cross(s + g0[j], s + g1[j], U, C):
@@ -503,7 +527,7 @@ def _current_limit(w, i_peak, u_max, R, ke, wl):
 def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
               op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, table, n_delay,
               in_slots, out_slots, fr_slots, rec_slots, n_slots,
-              PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, step, out_ptr, out_col, out_val, G, coulomb,
+              PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, out_ptr, out_col, out_val, G, coulomb,
               static, x0, rec_out, states_out, fric_out, stuck_out, x_final):
     """Run ``n_steps`` base steps; returns ``(status, step, events)`` (status 0: completed).
 
@@ -549,6 +573,9 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     g0 = np.zeros(nf)          # event values of the links at z and at zc (see _link_values)
     g1 = np.zeros(nf)
     xi = np.zeros(nx)          # modal magnitudes of the state derivative (_modal_magnitudes)
+    xt = np.zeros(nx)
+    du = np.zeros(nu)          # |change of the held input| at the latch
+    carried = False            # xi bounds the magnitudes at z's step start once carried (_carry)
     for i in range(nx):
         z[i] = x0[i]
     # links at zero sliding velocity start stuck
@@ -673,7 +700,9 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
 
         # (3) latch the held input; a stuck link may break away at once
         for i in range(nu):
-            z[nx + i] = slots[_u(in_slots[i])]
+            v = slots[_u(in_slots[i])]
+            du[i] = abs(v - z[nx + i])
+            z[nx + i] = v
         hold_ok = cfg == 0          # no stuck link: nothing to hold
         if cfg != 0:
             _holding_forces(Lz, cfg, stuck, z, hold)
@@ -682,6 +711,7 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                 if stuck[j] and abs(hold[j]) > static[j]:
                     cfg = _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp)
                     hold_ok = False
+                    carried = False
                     break
 
         # (4) records
@@ -733,10 +763,19 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                     _holding_forces(Lz, cfg, stuck, z, hold)
                 for j in range(nf):
                     g0[j] = hold[j] if stuck[j] else dirn[j] * _dot(G[j], z, nx)
-                _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
-                in_step = not (_envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
-                               or _taylor_clear(z, g0, xi, K3, D, cfg, step, stuck, dirn, static,
-                                                nx))
+                # the modal magnitudes carried from the last step bound the new ones (cheap);
+                # the state is projected only when they cannot clear the step
+                clear = False
+                if carried:
+                    _carry(GH, kd, cfg, xi, du, nx, nu, xt)
+                    clear = _envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
+                if not clear:
+                    _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
+                    carried = True
+                    clear = (_envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
+                             or _taylor_clear(z, g0, xi, K3, D, cfg, step, stuck, dirn, static,
+                                              nx))
+                in_step = not clear
         if in_step:
             cfg, n_events = _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G,
                                                  static, coulomb, nx, nu, max_events, g0, g1,
@@ -744,6 +783,7 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                                                  end_ev)
             total_events += n_events
             hold_ok = False
+            carried = False
         else:
             for i in range(nx):
                 z[i] = zc[i]
@@ -776,7 +816,8 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
 def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, warmup,
                     op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, tables, tix,
                     n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots,
-                    PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, step, cont, out_ptr, out_col,
+                    PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, cont, out_ptr,
+                    out_col,
                     out_val, G,
                     coulomb, static, x0, rec_out, x_final, status, k_bad):
     """:func:`_simulate` for every variant; variant ``v`` uses ``PGT[cont[v]]``,
@@ -793,7 +834,7 @@ def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, war
             n_steps, rec_every, False, max_events, limit_abs, limit_factor, warmup,
             op_code, op_period, op_phase, op_ip, op_fp[v], idx, fdata[v], xb0[v], tables[tix[v]],
             n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots, PGT[c], Lz[c], Proj[c],
-            PsiT[c], KU[c], KP[c], K3[c], D[c], pair[c], step,
+            PsiT[c], KU[c], KP[c], K3[c], D[c], pair[c], GH[c], kd[c], step,
             out_ptr, out_col, out_val[v], G[v], coulomb[v], static[v], x0[v], rec_out[v],
             states_dummy, fric_dummy, stuck_dummy, x_final[v])
         status[v] = st
@@ -914,7 +955,7 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
     _check_run_args(n_steps, levels, max_events)
     n_steps = int(n_steps)
     low = lower(program)
-    PG, Lz, Proj, _, PsiT, KU, KP, K3, D, pair = kernel_matrices([program], low.links, int(levels))
+    PG, Lz, Proj, _, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices([program], low.links, int(levels))
     s, m = low.struct, low.nums
     out_ptr, out_col, out_val = sparse_outputs(m["CD"][None])
     nf = low.links.size
@@ -930,7 +971,7 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
         s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], m["op_fp"], s["idx"], m["fdata"],
         m["xb0"], m["table"], int(s["shapes"][5]), s["in_slots"], s["out_slots"],
         s["fr_slots"], s["rec_slots"], int(program.n_slots), PG[0], Lz[0], Proj[0], PsiT[0], KU[0], KP[0],
-        K3[0], D[0], pair[0], float(program.step), out_ptr, out_col,
+        K3[0], D[0], pair[0], GH[0], kd[0], float(program.step), out_ptr, out_col,
         out_val[0], m["G"], m["coulomb"], m["static"], m["x0"], rec, states, fric, stuck, x_final)
     if status != _OK:
         raise _diverged(status, k_bad, program.step, None)
@@ -1008,7 +1049,7 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
                         or not np.array_equal(low.struct[name], ref))
             raise ModelError(f"variant {v} does not have the structure of variant 0 ({what} "
                              f"differs)")
-    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair = kernel_matrices(programs, first.links, int(levels))
+    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices(programs, first.links, int(levels))
     nums = {key: np.ascontiguousarray(np.stack([low.nums[key] for low in lows]))
             for key in first.nums if key != "table"}
     tables, tix = _shared([low.nums["table"] for low in lows])
@@ -1027,7 +1068,7 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
         s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
         nums["fdata"], nums["xb0"], tables, tix, int(s["shapes"][5]), s["in_slots"],
         s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, PsiT, KU, KP, K3, D, pair,
-        float(step), cont,
+        GH, kd, float(step), cont,
         out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"], rec,
         x_final, status, k_bad)
     diverged_step = np.where(status != _OK, k_bad, -1)
