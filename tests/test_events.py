@@ -320,3 +320,27 @@ def test_5m4s_breakaway_inside_a_step_against_the_mechanics(static_5m4s):
     assert run(step, 1, 14).events == 1
     # inside the closed loop too, the step holds the event (an end-of-step test finds none)
     assert run(prog, k + 1, LEVELS).events > run(prog, k, LEVELS).events
+
+
+def test_the_envelope_tests_never_clear_a_crossing():
+    # the two closed-form tests of the kernel against dense sampling of their own polynomials:
+    # a chord minus its envelope (U + C tau (1 - tau)), and the degree-2 Taylor polynomial minus
+    # M3 s^3 / 6; a "clear" answer must mean the polynomial stays positive (zero coefficients,
+    # touching ends and vertices at the ends included by the draws)
+    from sicomat.simulate.kernel import _cubic_positive, _may_cross
+
+    rng = np.random.default_rng(2)
+    tau = np.linspace(0.0, 1.0, 2001)
+    for _ in range(5000):
+        a, b = np.abs(rng.normal(size=2)) * rng.choice([0.0, 1.0], size=2)
+        U, C = np.abs(rng.normal(size=2)) * rng.choice([0.0, 0.1, 3.0], size=2)
+        p_min = (a + (b - a) * tau - U - C * tau * (1 - tau)).min()
+        if not _may_cross(a, b, U, C):
+            assert p_min >= -1e-12
+        f0 = abs(rng.normal()) * rng.choice([0.0, 1.0])
+        f1, f2 = rng.normal(size=2) * rng.choice([0.0, 1.0, 10.0], size=2)
+        M3 = abs(rng.normal()) * rng.choice([0.0, 1.0, 10.0])
+        dt = abs(rng.normal()) + 1e-3
+        s = tau[1:] * dt
+        if _cubic_positive(f0, f1, f2, M3, dt):
+            assert (f0 + f1 * s + f2 * s ** 2 / 2 - M3 * s ** 3 / 6).min() > -1e-12

@@ -394,7 +394,7 @@ def _cubic_positive(f0, f1, f2, M3, dt):
             for s in ((f2 - sq) / M3, (f2 + sq) / M3):
                 if 0.0 < s < dt and not f0 + s * (f1 + s * (0.5 * f2 - s * M3 / 6.0)) > 0.0:
                     return False
-    elif f2 < 0.0:
+    elif f2 != 0.0:            # a parabola: its vertex
         s = -f1 / f2
         if 0.0 < s < dt and not f0 + s * (f1 + 0.5 * f2 * s) > 0.0:
             return False
