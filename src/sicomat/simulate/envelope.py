@@ -1,4 +1,4 @@
-"""Curvature bounds of the friction-event functions inside a base step (in-step event detection).
+"""Bounds of the friction-event functions inside a base step (in-step event detection).
 
 Within a segment of a step (one stick configuration, held ``w = [u; f]``) every event function of
 the kernel is linear in the state: the holding force of a stuck link ``g = Lz[c, j] @ z`` or the
@@ -16,10 +16,14 @@ and the absolute value of each coordinate for the general block that gathers the
 (``|λ| h <= SLOW``: rigid-body Jordan blocks, the zeros of the constraints) and any cluster of
 close fast eigenvalues (componentwise suprema by a piecewise Taylor series with its remainder).
 Modal coordinates matter: in raw coordinates a stiff spring's two ends would each look like a
-large force. The kernel computes ``ξ = Psi z`` (``Psi = Y [A_c B_c]``) once per segment and
-``S2_j = K[c, j] @ |ξ|``; between two points ``a < b`` of the segment the function then lies
-within ``(t - a)(b - t) S2_j / 2`` of its chord (the interpolation remainder), so a sub-step whose
-chord and envelope stay on the safe side of the threshold holds no event.
+large force. The same holds for ``g'''`` and, for the fast blocks (invertible ``T_b``), for the
+block's part of ``g`` itself (``r S_b T_b⁻¹ e^{T_b t} ξ_b``, its amplitude). The kernel computes
+``|ξ|`` from ``ξ = Psi z`` (``Psi = Y [A_c B_c]``) at a segment's start, or carries a bound of it
+from the last step (:func:`_growth`), and on a sub-step of level ``l`` a link's event function
+lies within ``KU[l] @ |ξ| + τ(1 - τ) KP[l] @ |ξ|`` of its chord (each block contributing twice
+its amplitude or its interpolation remainder ``δ² sup|g_b''| / 2``, the smaller), and within
+``s³/6 K3 @ |ξ|`` of its Taylor polynomial of degree 2 at the sub-step's start; a sub-step
+whose bounds stay on the safe side of the threshold holds no event.
 """
 
 from __future__ import annotations
