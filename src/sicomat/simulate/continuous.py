@@ -10,6 +10,7 @@ import scipy.linalg
 from numba import njit
 
 from sicomat.errors import ModelError
+from sicomat.simulate.envelope import curvature_bounds
 from sicomat.simulate.program import ContinuousPart
 
 __all__ = ["MAX_FRICTION_LINKS", "DEFAULT_LEVELS", "ConstrainedDynamics", "Discretization",
@@ -316,16 +317,28 @@ def _discretized(parts: Sequence[ContinuousPart], step: float, levels: int,
     mats, index = _distinct(parts, links)
     A, B, F, G = _stack(mats)
     PE, L, P = _constrained_all(A, B, F, G)
-    return _zoh(PE, float(step), int(levels)), L, P, index, A.shape[1]
+    return _zoh(PE, float(step), int(levels)), L, P, index, A.shape[1], PE, G
 
 
 def _kernel_layout(parts: Sequence[ContinuousPart], step: float, levels: int,
                    links: Sequence[int] | None) -> tuple[np.ndarray, ...]:
     """The discretisation in the kernel's layout: ``[Phi Gamma]ᵀ`` (shape ``(n_distinct, 2**nf,
-    levels + 1, nx + nw, nx)``), ``[Lx Lu Lf]``, the projections, and for each part the index of its
-    discretisation (equal parts share one)."""
-    E, L, P, index, nx = _discretized(parts, step, levels, links)
-    return np.ascontiguousarray(np.swapaxes(E[..., :nx, :], -1, -2)), L, P, index
+    levels + 1, nx + nw, nx)``), ``[Lx Lu Lf]``, the projections, for each part the index of its
+    discretisation (equal parts share one), and the in-step event bounds ``PsiT, KU, KP, K3, D, pair, GH, kd`` of
+    :func:`sicomat.simulate.envelope.curvature_bounds`."""
+    E, L, P, index, nx, PE, G = _discretized(parts, step, levels, links)
+    bounds = (curvature_bounds(PE, L, G, float(step), int(levels)) if L.shape[-2]
+              else _no_bounds(PE, L))
+    return (np.ascontiguousarray(np.swapaxes(E[..., :nx, :], -1, -2)), L, P, index) + bounds
+
+
+def _no_bounds(PE: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Empty in-step bounds of parts without friction links (the kernel never reads them)."""
+    n_parts, nc, nx, nz = PE.shape
+    return (np.zeros((n_parts, nc, nz, nx)), np.zeros((n_parts, nc, 0, 1, nx)),
+            np.zeros((n_parts, nc, 0, 1, nx)), np.zeros((n_parts, nc, 0, nx)),
+            np.zeros((n_parts, nc, 0, 2, nz)), np.zeros((n_parts, nc, nx), dtype=np.int8),
+            np.zeros((n_parts, nc, nx, nz - nx + 1)), np.zeros((n_parts, nc), dtype=np.int64))
 
 
 def _discretization(E: np.ndarray, L: np.ndarray, P: np.ndarray, nx: int, step: float,
@@ -359,7 +372,7 @@ def discretize(part: ContinuousPart, step: float, levels: int = DEFAULT_LEVELS, 
     ModelError
         Inconsistent shapes, a bad step, or more than :data:`MAX_FRICTION_LINKS` friction links.
     """
-    E, L, P, _, nx = _discretized([part], step, levels, links)
+    E, L, P, _, nx, _, _ = _discretized([part], step, levels, links)
     return _discretization(E[0], L[0], P[0], nx, step, levels)
 
 
@@ -382,5 +395,5 @@ def discretize_many(parts: Sequence[ContinuousPart], step: float, levels: int = 
     Discretization
         With a leading variant axis on every array.
     """
-    E, L, P, index, nx = _discretized(list(parts), step, levels, links)
+    E, L, P, index, nx, _, _ = _discretized(list(parts), step, levels, links)
     return _discretization(E[index], L[index], P[index], nx, step, levels)

@@ -199,6 +199,18 @@ def _propagate(PGT, c, lev, z, out, nx):
 
 
 @njit(cache=True, error_model="numpy", inline='always')
+def _propagate_rows(MT, c, z, out, nx):
+    """``out[:nx] = MT[c].T @ z``, column-wise as :func:`_propagate`."""
+    z0 = z[0]
+    for i in range(nx):
+        out[i] = 0.0 + MT[c, 0, i] * z0
+    for j in range(1, z.shape[0]):
+        zj = z[j]
+        for i in range(nx):
+            out[i] += MT[c, j, i] * zj
+
+
+@njit(cache=True, error_model="numpy", inline='always')
 def _dot(a, b, n):
     """``a[:n] @ b[:n]`` in four partial sums: one chain of additions would wait on each one's latency
     (these dot products decide stick and slip at every step)."""
@@ -228,24 +240,6 @@ def _holding_forces(Lz, c, stuck, z, hold):
             hold[j] = _holding_force(Lz, c, j, z)
 
 
-@njit(cache=True, error_model="numpy", inline='always')
-def _has_event(zc, c, stuck, dirn, Lz, G, static, nx, hold):
-    """A sliding link's velocity opposes its direction, or a stuck link's force exceeds static.
-
-    The holding forces of the stuck links at ``zc`` are left in ``hold`` (all of them when there
-    is no event).
-    """
-    for j in range(stuck.shape[0]):
-        if stuck[j]:
-            lam = _holding_force(Lz, c, j, zc)
-            hold[j] = lam
-            if abs(lam) > static[j]:
-                return True
-        elif dirn[j] * _dot(G[j], zc, nx) < 0.0:
-            return True
-    return False
-
-
 @njit(cache=True, error_model="numpy")
 def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     """Stick / slip decision at an event; projects the state, updates ``z``'s friction part.
@@ -261,7 +255,7 @@ def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     for j in range(nf):
         if stuck[j]:
             cand |= 1 << j
-        elif dirn[j] * _dot(G[j], z, nx) <= 0.0:    # as in _has_event: same sum, same sign
+        elif dirn[j] * _dot(G[j], z, nx) <= 0.0:    # as in _link_values: same sum, same sign
             cand |= 1 << j
     while True:
         for i in range(nx):
@@ -293,58 +287,203 @@ def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     return cand
 
 
+@njit(cache=True, error_model="numpy", inline='always')
+def _link_values(zc, c, stuck, dirn, Lz, G, static, nx, vals):
+    """The event functions of every link at ``zc`` into ``vals`` (a stuck link's holding force, a
+    sliding link's velocity times its direction); True when one is past its event (``|force| >
+    static``, or the velocity opposes the direction of motion). Every link is evaluated (no early
+    exit): the in-step envelope needs them all."""
+    event = False
+    for j in range(stuck.shape[0]):
+        if stuck[j]:
+            lam = _holding_force(Lz, c, j, zc)
+            vals[j] = lam
+            if abs(lam) > static[j]:
+                event = True
+        else:
+            s = dirn[j] * _dot(G[j], zc, nx)
+            vals[j] = s
+            if s < 0.0:
+                event = True
+    return event
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _modal_magnitudes(PsiT, pair, c, z, nx, xi):
+    """``xi = |Psi[c] z|``: the magnitudes of the modal coordinates of the state derivative
+    (the Euclidean norm of each modal pair at its first index, 0 at its second), from which the
+    in-step envelopes of every link follow (see :mod:`sicomat.simulate.envelope`)."""
+    _propagate_rows(PsiT, c, z, xi, nx)
+    for i in range(nx):
+        if pair[c, i] == 1:
+            xi[i] = np.sqrt(xi[i] * xi[i] + xi[i + 1] * xi[i + 1])
+            xi[i + 1] = 0.0
+        else:
+            xi[i] = abs(xi[i])
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _carry(GH, kd, c, xi, du, nx, nu, xt):
+    """``xi <- G xi + H du`` (:func:`sicomat.simulate.envelope._growth`): bounds of the modal
+    magnitudes one step later, after the latch of an input that changed by ``du``; dense on the
+    general blocks ``[:kd]``, diagonal on the Euclidean ones."""
+    k = kd[c]
+    for i in range(k):
+        s = 0.0
+        for j in range(k):
+            s += GH[c, i, j] * xi[j]
+        xt[i] = s
+    for i in range(k, nx):
+        xt[i] = GH[c, i, nx] * xi[i]
+    for m in range(nu):
+        dm = du[m]
+        for i in range(nx):
+            xt[i] += GH[c, i, nx + 1 + m] * dm
+    for i in range(nx):
+        xi[i] = xt[i]
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _may_cross(a, b, U, C):
+    """Whether ``p(τ) = a + (b - a) τ - U - C τ (1 - τ)`` (``U, C >= 0``) dips below 0 for some
+    ``τ`` in [0, 1]: the chord of a function from ``a`` to ``b`` minus its envelope."""
+    a -= U
+    b -= U
+    if a < 0.0 or b < 0.0:
+        return True
+    d = C - (b - a)
+    if d <= 0.0 or d >= 2.0 * C:       # vertex outside (0, 1): the minimum is at an end
+        return False
+    return d * d > 4.0 * a * C
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _envelope_clear(g0, g1, xi, KU, KP, c, lev, stuck, static, nx):
+    """True when no link can pass its event inside a sub-step of level ``lev`` whose ends have
+    the event values ``g0``, ``g1`` (none past its event), ``xi`` the modal magnitudes at the
+    segment's start."""
+    for j in range(stuck.shape[0]):
+        U = 0.0
+        C = 0.0
+        for i in range(nx):
+            U += KU[c, j, lev, i] * xi[i]
+            C += KP[c, j, lev, i] * xi[i]
+        if stuck[j]:
+            s = static[j]
+            if _may_cross(s - g0[j], s - g1[j], U, C) or _may_cross(s + g0[j], s + g1[j], U, C):
+                return False
+        elif _may_cross(g0[j], g1[j], U, C):
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _cubic_positive(f0, f1, f2, M3, dt):
+    """Whether ``f0 + f1 s + f2 s²/2 - M3 s³/6 > 0`` on (0, dt] (``f0 >= 0``, ``M3 >= 0``): the
+    Taylor lower bound of a function from its value and first two derivatives at a sub-step's
+    start and a bound ``M3`` on its third derivative."""
+    if not f0 + dt * (f1 + dt * (0.5 * f2 - dt * M3 / 6.0)) > 0.0:
+        return False
+    if f0 == 0.0 and not (f1 > 0.0 or (f1 == 0.0 and f2 > 0.0)):
+        return False
+    # interior minima of the cubic: roots of f1 + f2 s - M3 s²/2 in (0, dt)
+    if M3 > 0.0:
+        disc = f2 * f2 + 2.0 * M3 * f1
+        if disc >= 0.0:
+            sq = np.sqrt(disc)
+            for s in ((f2 - sq) / M3, (f2 + sq) / M3):
+                if 0.0 < s < dt and not f0 + s * (f1 + s * (0.5 * f2 - s * M3 / 6.0)) > 0.0:
+                    return False
+    elif f2 != 0.0:            # a parabola: its vertex
+        s = -f1 / f2
+        if 0.0 < s < dt and not f0 + s * (f1 + 0.5 * f2 * s) > 0.0:
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _taylor_clear(z, g0, xi, K3, D, c, dt, stuck, dirn, static, nx):
+    """True when, from the Taylor polynomial of degree 2 at the sub-step's start ``z`` and the
+    bound ``K3 @ xi`` on the third derivative, no link can pass its event within ``dt``. This
+    proves the start of a segment where an event function starts at its threshold, which no
+    chord can (a link that has just broken away slides from zero velocity)."""
+    nz = z.shape[0]
+    for j in range(stuck.shape[0]):
+        M3 = _dot(K3[c, j], xi, nx)
+        d1 = _dot(D[c, j, 0], z, nz)
+        d2 = _dot(D[c, j, 1], z, nz)
+        if stuck[j]:
+            s = static[j]
+            if not (_cubic_positive(s - g0[j], -d1, -d2, M3, dt)
+                    and _cubic_positive(s + g0[j], d1, d2, M3, dt)):
+                return False
+        elif not _cubic_positive(g0[j], dirn[j] * d1, dirn[j] * d2, M3, dt):
+            return False
+    return True
+
+
 @njit(cache=True, error_model="numpy")
 def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, coulomb, nx, nu,
-                         max_events, hold):
-    """Advance ``z`` over one base step whose full-step candidate ``zc`` contains an event.
+                         max_events, g0, g1, PsiT, KU, KP, K3, D, pair, xi, step, end_event):
+    """Advance ``z`` over one base step whose full-step candidate ``zc`` (event values ``g1``,
+    ``end_event`` whether one is past its event) contains an event or could.
 
-    Sub-steps are binary fractions ``h / 2**l``: the largest fraction that fits in the rest of
-    the step is tried; if it contains an event it is halved until the event is bracketed by one
-    finest sub-step, which is taken, and the event is resolved at its end. Returns the new
-    configuration and the number of events.
+    Sub-steps are binary fractions ``h / 2**l``, taken in time order: a fraction twice the last
+    one taken (the whole step at first), or the largest that fits in the rest of the step, is
+    tried and halved while it may hold an event, i.e. while an
+    event function is past its event at its end, or its chord and interpolation envelope (from
+    the modal magnitudes ``xi`` at the segment's start) cross the threshold inside. A finest sub-step is taken in any
+    case; an event at its end is resolved there (and the bounds recomputed in the new
+    configuration). So every point of the finest grid ``h / 2**levels`` where an event function
+    is past its event, and every excursion inside the step that lasts longer than a finest
+    sub-step, is found. Returns the new configuration and the number of events.
     """
     nz = z.shape[0]
+    nf = stuck.shape[0]
     levels = PGT.shape[1] - 1
     total = 1 << levels
     pos = 0
     n_events = 0
     first = True
+    _link_values(z, cfg, stuck, dirn, Lz, G, static, nx, g0)
+    _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
+    grow = 0                   # the level to try next: one coarser than the last one taken
     while pos < total:
         rem = total - pos
-        lev = 0
+        lev = grow
         while (1 << (levels - lev)) > rem:
             lev += 1
-        if first:
-            first = False      # the caller's candidate: the whole step from pos = 0, level 0
-        else:
-            _propagate(PGT, cfg, lev, z, zc, nx)
-            if (n_events >= max_events
-                    or not _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx, hold)):
-                for i in range(nx):
-                    z[i] = zc[i]
-                pos += 1 << (levels - lev)
-                continue
-        # an event inside [pos, pos + 2^(levels-lev)): bisect down to one finest sub-step
-        have = lev == levels
-        while lev < levels:
-            lev += 1
-            _propagate(PGT, cfg, lev, z, zc, nx)
-            if _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx, hold):
-                have = lev == levels
+        while True:
+            if first:
+                first = False      # the caller's candidate: the whole step from pos = 0, level 0
+                event = end_event
             else:
-                for i in range(nx):
-                    z[i] = zc[i]
-                pos += 1 << (levels - lev)
-                have = False
-        if not have:
-            _propagate(PGT, cfg, levels, z, zc, nx)
+                _propagate(PGT, cfg, lev, z, zc, nx)
+                event = _link_values(zc, cfg, stuck, dirn, Lz, G, static, nx, g1)
+            if n_events >= max_events:
+                event = False
+                break
+            if lev == levels:
+                break
+            if not event and (_envelope_clear(g0, g1, xi, KU, KP, cfg, lev, stuck, static, nx)
+                              or _taylor_clear(z, g0, xi, K3, D, cfg, step / (1 << lev), stuck,
+                                               dirn, static, nx)):
+                break
+            lev += 1
         for i in range(nx):
             z[i] = zc[i]
-        pos += 1
-        cfg = _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp)
-        for i in range(nx, nz):
-            zc[i] = z[i]
-        n_events += 1
+        pos += 1 << (levels - lev)
+        grow = lev - 1 if lev > 0 else 0
+        if event:
+            cfg = _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp)
+            for i in range(nx, nz):
+                zc[i] = z[i]
+            n_events += 1
+            _link_values(z, cfg, stuck, dirn, Lz, G, static, nx, g0)
+            _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
+        else:
+            for j in range(nf):
+                g0[j] = g1[j]
     return cfg, n_events
 
 
@@ -388,8 +527,8 @@ def _current_limit(w, i_peak, u_max, R, ke, wl):
 def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
               op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, table, n_delay,
               in_slots, out_slots, fr_slots, rec_slots, n_slots,
-              PGT, Lz, Proj, out_ptr, out_col, out_val, G, coulomb, static, x0,
-              rec_out, states_out, fric_out, stuck_out, x_final):
+              PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, out_ptr, out_col, out_val, G, coulomb,
+              static, x0, rec_out, states_out, fric_out, stuck_out, x_final):
     """Run ``n_steps`` base steps; returns ``(status, step, events)`` (status 0: completed).
 
     The op rows ``op_ip`` carry everything an op reads (slots, offsets into ``idx`` and
@@ -431,6 +570,12 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     # and reused by the friction slots, the breakaway test and the stored friction
     hold = np.zeros(nf)
     hold_ok = False
+    g0 = np.zeros(nf)          # event values of the links at z and at zc (see _link_values)
+    g1 = np.zeros(nf)
+    xi = np.zeros(nx)          # modal magnitudes of the state derivative (_modal_magnitudes)
+    xt = np.zeros(nx)
+    du = np.zeros(nu)          # |change of the held input| at the latch
+    carried = False            # xi bounds the magnitudes at z's step start once carried (_carry)
     for i in range(nx):
         z[i] = x0[i]
     # links at zero sliding velocity start stuck
@@ -555,7 +700,9 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
 
         # (3) latch the held input; a stuck link may break away at once
         for i in range(nu):
-            z[nx + i] = slots[_u(in_slots[i])]
+            v = slots[_u(in_slots[i])]
+            du[i] = abs(v - z[nx + i])
+            z[nx + i] = v
         hold_ok = cfg == 0          # no stuck link: nothing to hold
         if cfg != 0:
             _holding_forces(Lz, cfg, stuck, z, hold)
@@ -564,6 +711,7 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                 if stuck[j] and abs(hold[j]) > static[j]:
                     cfg = _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp)
                     hold_ok = False
+                    carried = False
                     break
 
         # (4) records
@@ -598,19 +746,50 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                 k_bad = k
                 break
 
-        # (5) advance the continuous state to t_{k+1}: the whole step, bisected if it holds an event
+        # (5) advance the continuous state to t_{k+1}: the whole step, subdivided if it holds or
+        # may hold an event
         for i in range(nx, nz):
             zc[i] = z[i]
+        # (an event inside the step is possible when one is past its event at the step's end, or
+        # when the chord and the curvature envelope of an event function cross its threshold)
         _propagate(PGT, cfg, 0, z, zc, nx)
-        if nf > 0 and _has_event(zc, cfg, stuck, dirn, Lz, G, static, nx, hold):
+        in_step = False
+        end_ev = False
+        if nf > 0:
+            end_ev = _link_values(zc, cfg, stuck, dirn, Lz, G, static, nx, g1)
+            in_step = end_ev
+            if not end_ev:
+                if not hold_ok:
+                    _holding_forces(Lz, cfg, stuck, z, hold)
+                for j in range(nf):
+                    g0[j] = hold[j] if stuck[j] else dirn[j] * _dot(G[j], z, nx)
+                # the modal magnitudes carried from the last step bound the new ones (cheap);
+                # the state is projected only when they cannot clear the step
+                clear = False
+                if carried:
+                    _carry(GH, kd, cfg, xi, du, nx, nu, xt)
+                    clear = _envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
+                if not clear:
+                    _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
+                    carried = True
+                    clear = (_envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
+                             or _taylor_clear(z, g0, xi, K3, D, cfg, step, stuck, dirn, static,
+                                              nx))
+                in_step = not clear
+        if in_step:
             cfg, n_events = _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G,
-                                                 static, coulomb, nx, nu, max_events, hold)
+                                                 static, coulomb, nx, nu, max_events, g0, g1,
+                                                 PsiT, KU, KP, K3, D, pair, xi, step,
+                                                 end_ev)
             total_events += n_events
             hold_ok = False
+            carried = False
         else:
             for i in range(nx):
                 z[i] = zc[i]
-            hold_ok = True      # _has_event left the holding forces at zc, now z
+            for j in range(nf):
+                hold[j] = g1[j]
+            hold_ok = True      # the event values at zc, now z, hold the stuck links' forces
 
         # divergence
         bad = False
@@ -637,8 +816,10 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
 def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, warmup,
                     op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, tables, tix,
                     n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots,
-                    PGT, Lz, Proj, cont, out_ptr, out_col, out_val, G, coulomb, static, x0,
-                    rec_out, x_final, status, k_bad):
+                    PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, cont, out_ptr,
+                    out_col,
+                    out_val, G,
+                    coulomb, static, x0, rec_out, x_final, status, k_bad):
     """:func:`_simulate` for every variant; variant ``v`` uses ``PGT[cont[v]]``,
     ``Lz[cont[v]]``, ``Proj[cont[v]]`` (variants with the same continuous part share its
     discretisation) and the setpoint table ``tables[tix[v]]`` (usually one for all)."""
@@ -653,6 +834,7 @@ def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, war
             n_steps, rec_every, False, max_events, limit_abs, limit_factor, warmup,
             op_code, op_period, op_phase, op_ip, op_fp[v], idx, fdata[v], xb0[v], tables[tix[v]],
             n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots, PGT[c], Lz[c], Proj[c],
+            PsiT[c], KU[c], KP[c], K3[c], D[c], pair[c], GH[c], kd[c], step,
             out_ptr, out_col, out_val[v], G[v], coulomb[v], static[v], x0[v], rec_out[v],
             states_dummy, fric_dummy, stuck_dummy, x_final[v])
         status[v] = st
@@ -754,7 +936,11 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
     (4) records; (5) exact advance to ``t_{k+1}``. In (5) each friction link is stuck (its
     constraint force holds it) or slides with ``f = -coulomb * d`` (``d`` its direction of
     motion); a sliding link whose velocity reverses, or a stuck link whose force exceeds
-    ``static``, is an event, located by bisection over binary fractions of h. At an event, the
+    ``static``, is an event, located over binary fractions of h: a (sub-)step is halved while an
+    event condition holds at its end or the in-step envelope of an event function (from the
+    modal magnitudes of the state derivative, :mod:`sicomat.simulate.envelope`) cannot exclude
+    one inside, so no point of the finest grid ``h / 2**levels`` where a condition holds is
+    skipped, and an excursion lasting longer than one finest sub-step is always found. At an event, the
     links whose velocity reached zero are projected onto ``v = 0`` and stick if the holding force
     is within ``static``; otherwise they slide against that force. Links with ``coulomb = static
     = 0`` are ignored.
@@ -769,7 +955,7 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
     _check_run_args(n_steps, levels, max_events)
     n_steps = int(n_steps)
     low = lower(program)
-    PG, Lz, Proj, _ = kernel_matrices([program], low.links, int(levels))
+    PG, Lz, Proj, _, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices([program], low.links, int(levels))
     s, m = low.struct, low.nums
     out_ptr, out_col, out_val = sparse_outputs(m["CD"][None])
     nf = low.links.size
@@ -784,7 +970,8 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
         n_steps, 1, True, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP,
         s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], m["op_fp"], s["idx"], m["fdata"],
         m["xb0"], m["table"], int(s["shapes"][5]), s["in_slots"], s["out_slots"],
-        s["fr_slots"], s["rec_slots"], int(program.n_slots), PG[0], Lz[0], Proj[0], out_ptr, out_col,
+        s["fr_slots"], s["rec_slots"], int(program.n_slots), PG[0], Lz[0], Proj[0], PsiT[0], KU[0], KP[0],
+        K3[0], D[0], pair[0], GH[0], kd[0], float(program.step), out_ptr, out_col,
         out_val[0], m["G"], m["coulomb"], m["static"], m["x0"], rec, states, fric, stuck, x_final)
     if status != _OK:
         raise _diverged(status, k_bad, program.step, None)
@@ -862,7 +1049,7 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
                         or not np.array_equal(low.struct[name], ref))
             raise ModelError(f"variant {v} does not have the structure of variant 0 ({what} "
                              f"differs)")
-    PG, Lz, Proj, cont = kernel_matrices(programs, first.links, int(levels))
+    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices(programs, first.links, int(levels))
     nums = {key: np.ascontiguousarray(np.stack([low.nums[key] for low in lows]))
             for key in first.nums if key != "table"}
     tables, tix = _shared([low.nums["table"] for low in lows])
@@ -880,7 +1067,8 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
         n_steps, every, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP,
         s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
         nums["fdata"], nums["xb0"], tables, tix, int(s["shapes"][5]), s["in_slots"],
-        s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, cont,
+        s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, PsiT, KU, KP, K3, D, pair,
+        GH, kd, float(step), cont,
         out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"], rec,
         x_final, status, k_bad)
     diverged_step = np.where(status != _OK, k_bad, -1)
