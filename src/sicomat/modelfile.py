@@ -42,10 +42,7 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
         raise ModelError("no such model file", source=source) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"cannot read the model file ({exc.__class__.__name__}: {exc})", source=source) from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ModelError(f"not a valid TOML file: {exc}", source=source) from None
+    data = _read_toml(text, source)
     machine = machine_from_dict(data, source=source)
     settings = [(item, *parse_override(item)) for item in overrides]
     if not settings:
@@ -65,6 +62,7 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
 
 def machine_from_dict(data: Mapping[str, Any], source: str | None = None) -> Machine:
     """Validate a plain mapping (as read from TOML) into a :class:`Machine`."""
+    _check_depth(data, source)
     try:
         return Machine.model_validate(data)
     except ValidationError as exc:
@@ -99,7 +97,47 @@ def parse_override(item: str) -> tuple[str, Any]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
+    except (RecursionError, ValueError) as exc:   # nesting too deep, an integer of > 4300 digits
+        raise ModelError(_toml_limit(exc), source=f"--set {key}") from None
+    _check_depth(value, f"--set {key}", key)
     return key, value
+
+
+MAX_DEPTH = 32
+"""Deepest nesting of tables and arrays accepted in a model file or a ``--set`` value: the schema
+nests about 8 levels (``axes.X.mechanics.couplings.k.between.0``); far deeper input is a mistake (or
+an attack) and would otherwise exhaust Python's recursion limit in the validators."""
+
+
+def _read_toml(text: str, source: str) -> dict[str, Any]:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ModelError(f"not a valid TOML file: {exc}", source=source) from None
+    except (RecursionError, ValueError) as exc:   # the TOML parser's own limits
+        raise ModelError(_toml_limit(exc), source=source) from None
+
+
+def _toml_limit(exc: BaseException) -> str:
+    if isinstance(exc, RecursionError):
+        return f"values are nested too deeply to read (at most {MAX_DEPTH} levels of tables and arrays)"
+    if "digits" in str(exc):
+        return "a number has more than 4300 digits; write it in floating-point form (e.g. 1e30)"
+    return f"cannot read the value ({exc})"
+
+
+def _check_depth(data: Any, source: str | None, prefix: str = "") -> None:
+    """Refuse tables and arrays nested deeper than :data:`MAX_DEPTH`, naming the key path (iterative:
+    no recursion on the user's nesting)."""
+    stack = [(data, prefix, 0)]
+    while stack:
+        node, where, depth = stack.pop()
+        items = list(node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ())
+        if items and depth >= MAX_DEPTH:
+            raise ModelError(f"nested too deeply (more than {MAX_DEPTH} levels of tables and arrays)",
+                             source=source, path=where or None)
+        for k, child in items:
+            stack.append((child, f"{where}.{k}" if where else str(k), depth + 1))
 
 
 def _set_path(data: Mapping[str, Any], key: str, value: Any, source: str) -> dict[str, Any]:

@@ -144,7 +144,7 @@ class ControllerSpec(Spec):
     position_sensor: Name
     velocity_sensor: Name | None = None
     Kv: Gain
-    Kp: float | None = Field(default=None, ge=0)
+    Kp: float | None = Field(default=None, gt=0)
     Kp_normalized: Gain | None = None
     Ti: Time
     anti_windup: Literal["clamping", "back-calculation", "none"] = "clamping"
