@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["SicomatError", "ModelError", "AnalysisError", "OutputError"]
+__all__ = ["SicomatError", "ModelError", "AnalysisError", "OutputError", "ResourceError"]
 
 
 class SicomatError(Exception):
@@ -57,3 +57,8 @@ class AnalysisError(SicomatError, RuntimeError):
 
 class OutputError(SicomatError, OSError):
     """An output file (figure, CSV, model) cannot be written where it was asked for."""
+
+
+class ResourceError(SicomatError, MemoryError):
+    """A piece of work would need more memory than allowed (see :mod:`sicomat.budget`); raised from
+    an estimate, before anything is allocated."""

@@ -104,7 +104,14 @@ def build_servo_loop(machine: "Machine", axis: str | None = None) -> ServoLoop:
         missing = "controller" if spec.controller is None else "drive"
         raise ModelError(f"the axis has no {missing}; a servo loop needs [axes.{name}.drive] and "
                          f"[axes.{name}.controller]", path=f"axes.{name}.{missing}")
-    mech = build_mechanics(spec.mechanics)
+    from .conditioning import check_resolvable
+
+    try:
+        mech = build_mechanics(spec.mechanics)
+        check_resolvable(mech)         # the loop's analyses and simulation need the damped poles
+    except ModelError as exc:
+        raise ModelError(exc.message, path=f"axes.{name}.{exc.path}" if exc.path else None, value=exc.value,
+                         has_value=exc.has_value) from None
     if not mech.actuators:
         raise ModelError("the mechanics has no actuator for the drive to command",
                          path=f"axes.{name}.mechanics.actuators")

@@ -173,6 +173,10 @@ class LoopAnalysis:
         T = ctrl.velocity_period
         current, velocity = self._blocks()
         capacity = self.Phi.shape[0] + 2 + 2 * (len(current) + 1) + ctrl.velocity_delay
+        from .budget import require_dense
+
+        require_dense(capacity, "this analysis of the sampled velocity loop",
+                      f"one per sample of the velocity_delay of {ctrl.velocity_delay}")
         b = _Builder(capacity, n_inputs=2)
         x = b.block(self.Phi.shape[0])
         pos_raw = b.row(x, self.c_pos)

@@ -156,6 +156,9 @@ def modal_analysis(mech: "Mechanics") -> ModalResult:
     >>> [round(float(f) * 2 * 3.141592653589793, 6) for f in res.undamped_hz]
     [0.0, 2.0]
     """
+    from .conditioning import check_resolvable
+
+    check_resolvable(mech)
     n = mech.n
     M, D = mech.mass, mech.damping
     omega, shapes, r = _undamped(mech)
@@ -173,8 +176,27 @@ def modal_analysis(mech: "Mechanics") -> ModalResult:
                           undamped_hz=float(omega[i] / _TWO_PI),
                           shape={d: float(v) for d, v in zip(mech.dof_names, phi)},
                           rigid=i < r, participation=float(participation[i])))
+    _check_passive(modes)
     order = sorted(range(n), key=lambda i: (0 if modes[i].rigid else 1, modes[i].frequency_hz))
     return ModalResult(dofs=mech.dof_names, modes=tuple(modes[i] for i in order), poles=poles)
+
+
+_NEGATIVE_DAMPING = float(np.sqrt(np.finfo(float).eps))
+"""A passive mechanics (M > 0, K ≥ 0, D ≥ 0) has damping ratios ≥ 0: one below −√ε (1.5e-8) is not
+rounding noise of a resolved pole (an undamped 1e17-spread chain gives −6e-14) but a lost one."""
+
+
+def _check_passive(modes: list[Mode]) -> None:
+    """Refuse to report modes that cannot be right: non-finite figures, or a negative damping ratio
+    of a passive mechanics (see :mod:`sicomat.conditioning` for the check made on the model)."""
+    from .errors import AnalysisError
+
+    for m in modes:
+        figures = (m.frequency_hz, m.damping_ratio, m.damped_frequency_hz, m.undamped_hz, m.participation)
+        if not all(np.isfinite(figures)) or m.damping_ratio < -_NEGATIVE_DAMPING:
+            raise AnalysisError(f"the modal analysis of the mode dominated by {m.dominant_dof!r} is not resolved in "
+                                "double precision (a passive mechanics cannot have a negative damping ratio or "
+                                "non-finite figures); the stiffnesses or masses differ too much")
 
 
 def _undamped(mech: "Mechanics") -> tuple[np.ndarray, np.ndarray, int]:

@@ -81,8 +81,18 @@ def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None
     else:
         A, B, C = an.velocity_closed_loop(Kp, Ti)
     # the position integrator does not act on the velocity: keep the output row of v_meas
-    n = int(round((duration or max(30 * Ti if Ti < 0.05 else 0.5, 0.1)) / T))
+    n = _samples(duration or max(30 * Ti if Ti < 0.05 else 0.5, 0.1), T)
     return _step_with_marginal(A, B[:, 0], C[1], T, n)
+
+
+def _samples(duration: float, period: float) -> int:
+    """Samples of a step response of ``duration``, refused beyond the memory limit (the response,
+    its times and the normalised copy: 3 arrays of 8-byte numbers)."""
+    from .budget import require_memory
+
+    n = round(duration / period)
+    require_memory(24.0 * n, "this step response", f"{n} samples of {period:g} s x 3 arrays x 8 bytes")
+    return int(n)
 
 
 def _step_with_marginal(A, B, C, period, n) -> StepResponse:
@@ -116,13 +126,16 @@ def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: f
         A, B, C = an.analog_closed_loop(Kp, Ti)
         T = ctrl.velocity_period
         Ad, Bd = zoh_matrices(A - Kv * np.outer(B[:, 0], C[0]), Kv * B[:, :1], T)
-        return _step_with_marginal(Ad, Bd[:, 0], C[0], T, int(round(duration / T)))
+        return _step_with_marginal(Ad, Bd[:, 0], C[0], T, _samples(duration, T))
     Ap, Bp, C = an.position_model(Kp, Ti)
     Bp = Bp[:, 0]
     d = ctrl.position_delay
     n_x = Ap.shape[0]
     # closed position loop with a delay line of d samples on the velocity command
     size = n_x + d
+    from .budget import require_dense
+
+    require_dense(size, "this position step response", f"one per sample of the position_delay of {d}")
     Acl = np.zeros((size, size))
     Bcl = np.zeros(size)
     Acl[:n_x, :n_x] = Ap
@@ -138,7 +151,7 @@ def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: f
     Ccl = np.zeros(size)
     Ccl[:n_x] = C[0]
     Tp = ctrl.position_period
-    return _step(Acl, Bcl, Ccl, Tp, int(round(duration / Tp)))
+    return _step(Acl, Bcl, Ccl, Tp, _samples(duration, Tp))
 
 
 @dataclass(frozen=True)

@@ -174,8 +174,8 @@ def _is_dimensionless(si: str) -> bool:
 
 def _no_unit(text: str, unit: Unit) -> ValueError:
     number = text.strip()
-    return ValueError(f"a number in quotes has no unit; expected {unit.name}: write it without quotes for SI "
-                      f"({number}, in {unit.si}) or with its unit ('{number} {unit.si}')")
+    return ValueError(f"a number in quotes has no unit; expected {unit.name}: write it without quotes "
+                      f"for SI ({number}, in {unit.si}) or with its unit ('{number} {unit.si}')")
 
 
 _TURNS = ("turn", "revolutions_per_minute", "revolutions_per_second")

@@ -10,8 +10,10 @@ from pathlib import Path
 from typing import Any, Iterator, List, Optional
 
 import typer
+import typer.core
 
-__all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "emit_json", "load"]
+__all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "emit_json", "load", "number",
+           "OneLineErrors"]
 
 SetOption = typer.Option(
     None, "--set", metavar="KEY=VALUE",
@@ -21,6 +23,64 @@ JsonOption = typer.Option(False, "--json", help="Print one JSON object on stdout
 AxisOption = typer.Option(None, "--axis", help="Axis name (default: the first axis of the model).")
 PlotOption = typer.Option(None, "--plot", help="Write a figure to this file (.png, .svg or .pdf).",
                           dir_okay=False)
+
+
+def number(*, gt: float | None = None, ge: float | None = None, lt: float | None = None,
+           le: float | None = None, nonzero: bool = False, unit: str = ""):
+    """A Typer ``callback`` for a numeric option: the value must be finite and within its sense.
+
+    Used in the option's declaration (``typer.Option(None, "--move", callback=number(nonzero=True))``)
+    so that every float option of every command is checked the same way, before any work: a bad
+    value is one line naming the option, its value and what was expected, and exit status 2.
+
+    Examples
+    --------
+    >>> check = number(gt=0, unit="dB")
+    >>> check.bounds
+    '> 0 dB'
+    """
+    words = [f"{op} {bound:g}" for op, bound in ((">", gt), (">=", ge), ("<", lt), ("<=", le)) if bound is not None]
+    bounds = " and ".join(words) + (f" {unit}" if unit and words else "")
+
+    def check(ctx: typer.Context, param: typer.CallbackParam, value: Any) -> Any:
+        if value is None or ctx.resilient_parsing:
+            return value
+        option = param.opts[0] if param.opts else str(param.name)
+        if not math.isfinite(value):
+            problem = "expected a finite number" + (f" {bounds}" if bounds else "")
+        elif (gt is not None and not value > gt) or (ge is not None and not value >= ge) or \
+                (lt is not None and not value < lt) or (le is not None and not value <= le):
+            problem = f"expected a value {bounds}"
+        elif nonzero and value == 0:
+            problem = "expected a non-zero value"
+        else:
+            return value
+        from ..errors import ModelError
+
+        _fail(str(ModelError(problem, source=option, value=value)))
+
+    check.bounds = bounds  # type: ignore[attr-defined]
+    return check
+
+
+class OneLineErrors(typer.core.TyperGroup):
+    """The program's command group: a usage error (unknown option, a value that is not a number, a
+    missing argument) is one line on stderr and exit status 2, like every other bad input, instead of
+    click's usage block."""
+
+    def invoke(self, ctx: Any) -> Any:
+        try:   # recent Typer carries its own copy of click
+            from typer._click import exceptions as click  # type: ignore[import-not-found]
+        except ImportError:  # pragma: no cover
+            from click import exceptions as click
+
+        try:
+            return super().invoke(ctx)
+        except click.NoArgsIsHelpError:
+            raise
+        except click.UsageError as exc:
+            where = exc.ctx.command_path if exc.ctx is not None else ctx.command_path
+            _fail(" ".join(exc.format_message().split()) + f" (see '{where} --help')")
 
 
 @contextmanager
@@ -37,6 +97,9 @@ def guarded(source: Path | None = None) -> Iterator[None]:
         _fail(str(exc.with_source(str(source)) if exc.source is None and source is not None else exc))
     except SicomatError as exc:
         _fail(str(exc))
+    except MemoryError:  # past the estimates of sicomat.budget, e.g. with SICOMAT_MAX_MEMORY raised
+        _fail("out of memory: this machine cannot hold the work; lower SICOMAT_MAX_MEMORY (bytes, or e.g. "
+              "'8 GiB') below what it has so that SICOMAT refuses such work before starting it")
     except OSError as exc:  # e.g. writing a plot into a folder that does not exist
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         _fail(f"{where}{exc.strerror or exc}")
