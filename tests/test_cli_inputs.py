@@ -64,6 +64,10 @@ OPTIONS = [
     (["step", P5M4S, "--Kv", "inf"], "--Kv"),
     (["step", P5M4S, "--duration", "inf"], "--duration"),
     (["bode", P5M4S, "--points", "-1"], "'--points'"),
+    (["circle", str(EXAMPLES / "xy_table.toml"), "--radius", "10", "--feed", "1e300"], "--feed: expected a magnitude"),
+    (["simulate", P5M4S, "--move", "5", "--max-velocity", "1e300"], "--max-velocity"),
+    (["step", P5M4S, "--Ti", "1e-300"], "--Ti"),
+    (["step", P5M4S, "--duration", "1e-9"], "shorter than two samples"),
     (["modal"], "Missing argument 'model'"),
 ]
 
@@ -119,12 +123,15 @@ MODELS = [
     ("ti-negative", RIGID.replace('"4.32 ms"', "-1"), "axes.X.controller.Ti"),
     ("unknown-key", RIGID + "\nfoo = 1\n", "unknown key"),
     ("wrong-type", RIGID.replace('"150 kg"', "true"), "axes.X.mechanics.bodies.table.mass"),
-    ("mass-1e300", RIGID.replace('"150 kg"', "1e300"), "bodies.table.mass: this value is too large"),
+    ("mass-1e300", RIGID.replace('"150 kg"', "1e300"), "bodies.table.mass: expected a mass (kg) of magnitude"),
+    ("time-constant-1e-300", RIGID.replace('bandwidth = "1000 Hz"', 'time_constant = "1e-300 s"'),
+     "axes.X.drive.time_constant"),
     ("no-axes", 'name = "x"\n', "axes"),
     ("empty-masses", '[axes.X.mechanics]\ntype = "chain"\nmasses = []\n', "axes.X.mechanics.masses"),
     ("duplicate-names", '[axes.X.mechanics]\ntype = "chain"\nmasses = [1, 2]\nstiffnesses = [1]\n'
                         'names = ["a", "a"]\n', "unique"),
-    ("stiff-1e30", P5M4S_TEXT.replace('stiffness = "1e12 N/m"', "stiffness = 1e30"), "differ too much"),
+    ("stiff-1e30", P5M4S_TEXT.replace('stiffness = "1e12 N/m"', "stiffness = 1e30"),
+     "axes.X.mechanics.couplings.secondary.stiffness: couplings 'secondary' and"),
     ("negative-counts", RIGID.replace('[axes.X.mechanics.sensors.scale]\nbody = "table"',
                                       '[axes.X.mechanics.sensors.scale]\nbody = "table"\n'
                                       'counts_per_revolution = -5'), "counts_per_revolution"),

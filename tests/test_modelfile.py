@@ -282,6 +282,8 @@ RIGID = (EXAMPLES_DIR / "rigid_1m.toml").read_text(encoding="utf-8")
     ('Kv = "78.5 1/s"', 'Kv = "12 Hz"', "axes.X.controller.Kv"),            # cycles or radians?
     ('bandwidth = "1000 Hz"', 'bandwidth = "60000 rpm"', "axes.X.drive.bandwidth"),
     ('bandwidth = "1000 Hz"', "bandwidth = inf", "axes.X.drive.bandwidth"),
+    ('position_period = "1 ms"', 'position_period = "1e6 s"', "axes.X.controller.position_period"),  # 8e9 Tv
+    ('bandwidth = "1000 Hz"', 'time_constant = "1e-300 s"', "axes.X.drive.time_constant"),
     ('force_constant = "120 N/A"', "force_constant = nan", "axes.X.drive.force_constant"),
     ('position_sensor = "scale"', 'position_sensor = "scale"\nvelocity_filter = {type = "low-pass", '
                                   'frequency = 500, damping = inf}', "axes.X.controller.velocity_filter.damping"),

@@ -70,6 +70,13 @@ def test_angles_the_quantity_does_not_have_are_refused(text, kind):
         parse_quantity(text, UNITS[kind])
 
 
+@pytest.mark.parametrize("value", [1e101, "1e300 kg", -1e200, 1e-101, "1e-300 g"])
+def test_magnitudes_beyond_products_of_three_in_double_precision_are_refused(value):
+    with pytest.raises(ValueError, match="magnitude"):
+        parse_quantity(value, UNITS["mass"])
+    assert parse_quantity(0, UNITS["mass"]) == 0.0 and parse_quantity(1e100, UNITS["mass"]) == 1e100
+
+
 def test_integers_beyond_the_float_range_are_refused():
     with pytest.raises(ValueError, match="too large"):
         parse_quantity(10 ** 400, UNITS["mass"])

@@ -27,10 +27,10 @@ from .errors import ModelError
 if TYPE_CHECKING:  # pragma: no cover
     from .mechanics import Mechanics
 
-__all__ = ["check_numeric_range", "check_resolvable", "COEFFICIENT_RANGE"]
+__all__ = ["check_numeric_range", "check_resolvable", "check_axis_mechanics", "COEFFICIENT_RANGE"]
 
 EPS = float(np.finfo(float).eps)
-COEFFICIENT_RANGE = (1e-100, 1e100)
+COEFFICIENT_RANGE = (1e-100, 1e100)   # as sicomat.units.MAGNITUDES, for mechanics built in Python
 _RISK = 1e-6
 
 
@@ -82,3 +82,17 @@ def check_resolvable(mech: "Mechanics") -> None:
                          "themselves, so their frequencies and damping ratios would carry no correct digit; "
                          "make the stiff coupling rigid (merge its bodies) or bring the values closer",
                          path=f"mechanics.couplings.{a}.stiffness")
+
+
+def check_axis_mechanics(axis: str, spec) -> "Mechanics":
+    """The mechanics of axis ``axis`` built from ``spec`` and checked (range and resolvable poles),
+    an error located at ``axes.<axis>.mechanics...``."""
+    from .mechanics import build_mechanics
+
+    try:
+        mech = build_mechanics(spec)
+        check_resolvable(mech)
+    except ModelError as exc:
+        raise ModelError(exc.message, path=f"axes.{axis}.{exc.path}" if exc.path else f"axes.{axis}",
+                         value=exc.value, has_value=exc.has_value) from None
+    return mech

@@ -104,14 +104,9 @@ def build_servo_loop(machine: "Machine", axis: str | None = None) -> ServoLoop:
         missing = "controller" if spec.controller is None else "drive"
         raise ModelError(f"the axis has no {missing}; a servo loop needs [axes.{name}.drive] and "
                          f"[axes.{name}.controller]", path=f"axes.{name}.{missing}")
-    from .conditioning import check_resolvable
+    from .conditioning import check_axis_mechanics
 
-    try:
-        mech = build_mechanics(spec.mechanics)
-        check_resolvable(mech)         # the loop's analyses and simulation need the damped poles
-    except ModelError as exc:
-        raise ModelError(exc.message, path=f"axes.{name}.{exc.path}" if exc.path else None, value=exc.value,
-                         has_value=exc.has_value) from None
+    mech = check_axis_mechanics(name, spec.mechanics)   # the loop's analyses need resolvable poles
     if not mech.actuators:
         raise ModelError("the mechanics has no actuator for the drive to command",
                          path=f"axes.{name}.mechanics.actuators")

@@ -119,6 +119,8 @@ class FilterSpec(Spec):
 
 
 Sampling = Annotated[float, quantity("time"), Field(ge=0)]
+MAX_PERIOD_RATIO = 10000
+"""Most velocity periods in one position period accepted (see ``ControllerSpec``)."""
 
 
 class ControllerSpec(Spec):
@@ -195,6 +197,10 @@ class ControllerSpec(Spec):
         if abs(ratio - round(ratio)) > 1e-9 * max(ratio, 1.0) or round(ratio) < 1:
             raise fail("the position period must be a whole multiple of the velocity period {tv} s",
                        "position_period", self.position_period, tv=self.velocity_period)
+        if round(ratio) > MAX_PERIOD_RATIO:
+            raise fail("the position period is more than {limit} velocity periods ({tv} s): CNCs use 1 to 32, and "
+                       "the lifted position-loop model costs one matrix product per velocity period",
+                       "position_period", self.position_period, tv=self.velocity_period, limit=MAX_PERIOD_RATIO)
         if self.position_loop == "continuous" and self.velocity_loop != "continuous":
             raise fail("a continuous position loop needs a continuous velocity loop (a sampled inner loop "
                        "inside an analog outer loop is not a cascade a drive builds); set velocity_loop = "

@@ -92,6 +92,8 @@ def _samples(duration: float, period: float) -> int:
 
     n = round(duration / period)
     require_memory(24.0 * n, "this step response", f"{n} samples of {period:g} s x 3 arrays x 8 bytes")
+    if n < 2:
+        raise AnalysisError(f"a step response of {duration:g} s is shorter than two samples of {period:g} s")
     return int(n)
 
 

@@ -108,7 +108,16 @@ def parse_quantity(value: Any, unit: Unit) -> float:
         raise ValueError(f"expected {unit.name}, a number or a string with units")
     if not math.isfinite(result):
         raise ValueError(f"expected a finite value for {unit.name}")
+    if result != 0 and not MAGNITUDES[0] <= abs(result) <= MAGNITUDES[1]:
+        raise ValueError(f"expected {unit.name} of magnitude {MAGNITUDES[0]:g} to {MAGNITUDES[1]:g} in SI units: "
+                         "the analyses multiply up to three model values, which must stay finite in double "
+                         "precision")
     return result
+
+
+MAGNITUDES = (1e-100, 1e100)
+"""Magnitudes a non-zero quantity may have (SI): a product of three stays within 1e-300 … 1e300,
+inside the normal doubles (2.2e-308 … 1.8e308). No machine-tool value comes near either end."""
 
 
 _NUMBER_THEN_UNIT = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\W\d_].*?|%)\s*")

@@ -48,6 +48,8 @@ def number(*, gt: float | None = None, ge: float | None = None, lt: float | None
         option = param.opts[0] if param.opts else str(param.name)
         if not math.isfinite(value):
             problem = "expected a finite number" + (f" {bounds}" if bounds else "")
+        elif value != 0 and not 1e-100 <= abs(value) <= 1e100:   # as sicomat.units.MAGNITUDES
+            problem = "expected a magnitude from 1e-100 to 1e100 (products of three values must stay finite)"
         elif (gt is not None and not value > gt) or (ge is not None and not value >= ge) or \
                 (lt is not None and not value < lt) or (le is not None and not value <= le):
             problem = f"expected a value {bounds}"
@@ -97,6 +99,8 @@ def guarded(source: Path | None = None) -> Iterator[None]:
         _fail(str(exc.with_source(str(source)) if exc.source is None and source is not None else exc))
     except SicomatError as exc:
         _fail(str(exc))
+    except OverflowError as exc:  # a finite input whose consequences overflow double precision
+        _fail(f"a value is too large to compute with in double precision ({exc})")
     except MemoryError:  # past the estimates of sicomat.budget, e.g. with SICOMAT_MAX_MEMORY raised
         _fail("out of memory: this machine cannot hold the work; lower SICOMAT_MAX_MEMORY (bytes, or e.g. "
               "'8 GiB') below what it has so that SICOMAT refuses such work before starting it")

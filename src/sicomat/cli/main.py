@@ -20,11 +20,12 @@ def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
           json_: bool = JsonOption) -> None:
     """Validate a model file and summarise its axes, dofs and couplings."""
     with guarded(model):
-        from ..mechanics import build_mechanics
         from .tables import check_payload, print_check
 
+        from ..conditioning import check_axis_mechanics
+
         machine = load(model, set_)
-        mechanics = {name: build_mechanics(axis.mechanics) for name, axis in machine.axes.items()}
+        mechanics = {name: check_axis_mechanics(name, axis.mechanics) for name, axis in machine.axes.items()}
         payload = check_payload(machine, mechanics)
         if json_:
             emit_json(payload)
@@ -38,12 +39,12 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
           plot: Optional[Path] = PlotOption) -> None:
     """Natural frequencies, damping ratios and mode shapes of an axis's mechanics."""
     with guarded(model):
-        from ..mechanics import build_mechanics
+        from ..conditioning import check_axis_mechanics
         from ..modal import modal_analysis
 
         machine = load(model, set_)
         name = machine.axis_name(axis)
-        result = modal_analysis(build_mechanics(machine.axes[name].mechanics))
+        result = modal_analysis(check_axis_mechanics(name, machine.axes[name].mechanics))
         if plot is not None:
             from ..plotting import save_figure
 

@@ -136,6 +136,9 @@ def reduce_command(machine: "Machine", axis: str | None, method: str, order: int
                          source="--keep", value=",".join(keep_list))
     name = machine.axis_name(axis)
     ax = machine.axes[name]
+    from ..conditioning import check_axis_mechanics
+
+    check_axis_mechanics(name, ax.mechanics)     # a reduction of unresolvable poles means nothing
     try:
         if method == "physical":
             result = physical_reduction(ax.mechanics, keep_list, order=order, band_hz=band_hz, tool=_tool(ax))
