@@ -124,6 +124,9 @@ MODELS = [
     ("unknown-key", RIGID + "\nfoo = 1\n", "unknown key"),
     ("wrong-type", RIGID.replace('"150 kg"', "true"), "axes.X.mechanics.bodies.table.mass"),
     ("mass-1e300", RIGID.replace('"150 kg"', "1e300"), "bodies.table.mass: expected a mass (kg) of magnitude"),
+    ("filter-above-nyquist", RIGID.replace('position_sensor = "scale"', 'position_sensor = "scale"\n'
+                                           'current_filters = [{type = "notch", frequency = "1 THz"}]'),
+     "axes.X.controller.current_filters.0.frequency: filter frequency"),
     ("time-constant-1e-300", RIGID.replace('bandwidth = "1000 Hz"', 'time_constant = "1e-300 s"'),
      "axes.X.drive.time_constant"),
     ("no-axes", 'name = "x"\n', "axes"),

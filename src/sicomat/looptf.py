@@ -102,8 +102,9 @@ class LoopAnalysis:
     # ------------------------------------------------------------------ velocity loop (rate Tv)
     def _blocks(self) -> tuple[list[DiscreteSS], DiscreteSS | None]:
         ctrl, T = self.loop.controller, self.loop.controller.velocity_period
-        current = [_filter(f, T, f"controller.current_filters.{i}") for i, f in enumerate(ctrl.current_filters)]
-        velocity = _filter(ctrl.velocity_filter, T, "controller.velocity_filter") if ctrl.velocity_filter else None
+        where = f"axes.{self.loop.axis}.controller"
+        current = [_filter(f, T, f"{where}.current_filters.{i}") for i, f in enumerate(ctrl.current_filters)]
+        velocity = _filter(ctrl.velocity_filter, T, f"{where}.velocity_filter") if ctrl.velocity_filter else None
         return current, velocity
 
     def velocity_factors(self, omega: np.ndarray, Kp: float, Ti: float):

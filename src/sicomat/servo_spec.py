@@ -201,6 +201,13 @@ class ControllerSpec(Spec):
             raise fail("the position period is more than {limit} velocity periods ({tv} s): CNCs use 1 to 32, and "
                        "the lifted position-loop model costs one matrix product per velocity period",
                        "position_period", self.position_period, tv=self.velocity_period, limit=MAX_PERIOD_RATIO)
+        if self.velocity_loop == "discrete":    # sampled filters (Tustin) exist below the Nyquist frequency only
+            filters = [("velocity_filter", self.velocity_filter)] if self.velocity_filter is not None else []
+            for key, spec in filters + [(f"current_filters.{i}", f) for i, f in enumerate(self.current_filters)]:
+                if spec.frequency >= 0.5 / self.velocity_period:
+                    raise fail("filter frequency {value} Hz is not below the Nyquist frequency {nyquist:g} Hz of "
+                               "the sampled velocity loop", f"{key}.frequency", spec.frequency,
+                               nyquist=0.5 / self.velocity_period)
         if self.position_loop == "continuous" and self.velocity_loop != "continuous":
             raise fail("a continuous position loop needs a continuous velocity loop (a sampled inner loop "
                        "inside an analog outer loop is not a cascade a drive builds); set velocity_loop = "
