@@ -43,11 +43,17 @@ def test_angular_frequency_for_a_frequency_in_hz(text, expected):
         assert_allclose(parse_quantity(text, UNITS["frequency"]), expected, rtol=1e-12)
 
 
-@pytest.mark.parametrize("text", ["60000 rpm", "1000 rev/s", "1000 rps", "5 turn/min"])
+@pytest.mark.parametrize("text", ["60000 rpm", "1000 rev/s", "1000 rps", "5 turn/min", "60 krpm"])
 def test_rotational_speed_is_not_a_frequency(text):
     for _ in range(2):
         with pytest.raises(ValueError, match="rotational speed"):
             parse_quantity(text, UNITS["frequency"])
+
+
+def test_motor_constants_per_rpm_convert_through_their_radians():
+    # a datasheet's back-EMF of 60 V per 1000 rpm: 60 / (1000 * 2 pi / 60) V*s/rad
+    assert_allclose(parse_quantity("60 V/krpm", UNITS["rotary_emf"]), 60 / (1000 * 2 * math.pi / 60), rtol=1e-12)
+    assert_allclose(parse_quantity("2 N*m/deg", UNITS["torsional_stiffness"]), 2 * 180 / math.pi, rtol=1e-12)
 
 
 def test_frequency_in_hz_for_an_angular_frequency():
@@ -149,7 +155,9 @@ def test_percent_as_plain_number_is_scaled():
 FAST_CASES = [("250 kg", "mass"), ("9 ms", "time"), ("10 mm/rev", "radius"), ("80 %", "fraction"),
               ("1e3 mm", "length"), ("-5.5e-3 N*m/rad", "torsional_stiffness"), ("0.125 um", "length"),
               ("3 kg m", "force_constant"), ("2.5 mm / 2 s", "velocity"), ("7 g*cm**2", "inertia"),
-              ("12 mH", "inductance"), ("45 deg", "angle"), (".5 N*s/m", "linear_damping")]
+              ("12 mH", "inductance"), ("45 deg", "angle"), (".5 N*s/m", "linear_damping"),
+              ("6283.185307179586 rad/s", "frequency"), ("360 deg/s", "frequency"), ("240 rad/s", "inverse_time"),
+              ("60000 rpm", "frequency"), ("40 Hz", "inverse_time"), ("1e4 N*m/rad", "torque")]
 
 
 @pytest.mark.parametrize("text, kind", FAST_CASES)

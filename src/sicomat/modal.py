@@ -16,6 +16,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["Mode", "ModalResult", "modal_analysis"]
 
 _TWO_PI = 2.0 * np.pi
+_EPS = float(np.finfo(float).eps)
 
 
 @dataclass(frozen=True)
@@ -240,7 +241,13 @@ def _match_poles(shapes, omega, r, poles, pos_vectors, M, D):
     if flex.size == 0:
         return freq, zeta, damped
     scale = max(np.max(np.abs(poles)), 1.0)
-    oscillating = np.flatnonzero(poles.imag > 1e-12 * scale)
+    # A rigid motion is a double pole at 0; rounding (a backward error eps*|A| on a defective
+    # double zero) splits it into about +-sqrt(eps*|A|), e.g. +-1.1e-7 j beside |A| ~ 200: such a
+    # pair is not a flexible mode's pole. At most 2r poles, each below 10 sqrt(eps*scale), are set aside.
+    near_zero = [j for j in np.argsort(np.abs(poles))[: 2 * r] if abs(poles[j]) <= 10.0 * np.sqrt(_EPS * scale)]
+    usable = np.ones(poles.size, dtype=bool)
+    usable[near_zero] = False
+    oscillating = np.flatnonzero((poles.imag > 1e-12 * scale) & usable)
     matched = set()
     if oscillating.size:
         mac = _mac(shapes[:, flex], pos_vectors[:, oscillating])
@@ -251,7 +258,7 @@ def _match_poles(shapes, omega, r, poles, pos_vectors, M, D):
             k = flex[i]
             freq[k], zeta[k], damped[k] = abs(lam), -lam.real / abs(lam), lam.imag
             matched.add(k)
-    real_idx = [j for j in np.flatnonzero(np.abs(poles.imag) <= 1e-12 * scale)
+    real_idx = [j for j in np.flatnonzero((np.abs(poles.imag) <= 1e-12 * scale) & usable)
                 if abs(poles[j]) > 1e-9 * scale]
     for k in flex:
         if k in matched:

@@ -215,7 +215,7 @@ def _angle_factor(quantity, unit: Unit) -> float:
     hertz = any(name.endswith("hertz") for name in names)
     per_time = dict(quantity.dimensionality) == {"[time]": -1}
     if per_time and "Hz" in unit.si:
-        if any(name in _TURNS for name in names):
+        if any(turn in name for name in names for turn in _TURNS):   # also "krpm"
             raise ValueError(f"a rotational speed (rpm, rev/s) is not {unit.name}; write the frequency in Hz, "
                              "or as an angular frequency in rad/s")
         return 1.0 / (2.0 * math.pi) if given == 1 else 1.0
