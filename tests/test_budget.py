@@ -48,5 +48,8 @@ def test_the_python_api_is_protected_too(monkeypatch):
     loop = build_servo_loop(load_model(EXAMPLES / "rigid_1m.toml"))
     with pytest.raises(ResourceError, match="this simulation needs about"):
         simulate(loop, step_profile(1e-3), 1e6)       # 8e9 steps of 125 us
+    for duration in (float("nan"), float("inf"), -1.0):
+        with pytest.raises(ModelError, match="duration"):
+            simulate(loop, step_profile(1e-3), duration)
     with pytest.raises(ResourceError, match="this path interpolation"):
         interpolate(ToolPath([Line((0, 0), (1.0, 0))]), 1e-9, 1.0, 10.0, 1e-3)   # 1e9 s at 1 ms

@@ -46,6 +46,12 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: fl
             raise ModelError(f"variant {v}: the loop periods differ from variant 0's "
                              f"({loop.base_period:g} s / {loop.position_ratio} against {h:g} s / {Np})",
                              path=f"axes.{loop.axis}.controller")
+    try:
+        duration = float(duration)
+    except (TypeError, ValueError):
+        duration = math.nan
+    if not (math.isfinite(duration) and duration > 0):
+        raise ModelError("the duration must be a finite number of seconds > 0", path="duration", value=duration)
     n_steps = int(math.floor(duration / h + 1e-9))
     if n_steps < 2:
         raise ModelError(f"the duration {duration:g} s is shorter than two velocity-loop periods ({h:g} s)",
