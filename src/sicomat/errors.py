@@ -36,19 +36,25 @@ class ModelError(SicomatError, ValueError):
     def _format(self) -> str:
         parts = []
         if self.source:
-            parts.append(str(self.source))
+            parts.append(_short(str(self.source)))
         if self.path:
-            parts.append(self.path)
+            parts.append(_short(self.path))
         where = ": ".join(parts)
         what = self.message
         if self.has_value:
-            what = f"{what} (got {self.value!r})"
+            what = f"{what} (got {_short(repr(self.value))})"
         return f"{where}: {what}" if where else what
 
     def with_source(self, source: str) -> "ModelError":
         """The same error, located in ``source``."""
         return ModelError(self.message, source=source, path=self.path, value=self.value,
                           has_value=self.has_value)
+
+
+def _short(text: str, limit: int = 200) -> str:
+    """``text`` cut to ``limit`` characters for a one-line message (a 60 000-character ``--set``
+    value is echoed by its start and its length)."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 class AnalysisError(SicomatError, RuntimeError):

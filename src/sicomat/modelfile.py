@@ -92,6 +92,9 @@ def parse_override(item: str) -> tuple[str, Any]:
     if not sep or not key:
         raise ModelError("expected KEY=VALUE, e.g. axes.X.mechanics.bodies.load.mass='300 kg'",
                          source="--set", value=item)
+    if key.count(".") >= MAX_DEPTH:
+        raise ModelError(f"the key path is more than {MAX_DEPTH} levels deep; no model key is", source="--set",
+                         value=key)
     raw = raw.strip()
     try:
         value = tomllib.loads(f"v = {raw}")["v"]

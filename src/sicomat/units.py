@@ -164,7 +164,8 @@ def _parse_with_pint(text: str, unit: Unit) -> float:
         names = ", ".join(repr(n) for n in exc.unit_names) if isinstance(exc.unit_names, (tuple, list)) else repr(exc.unit_names)
         raise ValueError(f"unknown unit {names}; expected {unit.name}") from None
     except Exception:
-        raise ValueError(f"cannot read {text!r} as a quantity; expected {unit.name}") from None
+        shown = text if len(text) <= 80 else f"{text[:80]}..."
+        raise ValueError(f"cannot read {shown!r} as a quantity; expected {unit.name}") from None
     if not isinstance(quantity, ureg.Quantity) or not dict(quantity.unit_items()):  # "3667", "2*3"
         if not _is_dimensionless(unit.si):
             raise _no_unit(text, unit)
