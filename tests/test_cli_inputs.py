@@ -179,3 +179,9 @@ def test_a_directory_or_binary_gcode_file(tmp_path):
     binary = tmp_path / "p.nc"
     binary.write_bytes(b"\x00\xff\xfe" * 100)
     assert str(binary) in _fail(["simulate", xy, "--gcode", str(binary)])
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_endless_input_files_are_refused_without_reading_them_whole():
+    assert "larger than 16 MiB" in _fail(["check", "/dev/zero"])
+    assert "larger than 256 MiB" in _fail(["simulate", str(EXAMPLES / "xy_table.toml"), "--gcode", "/dev/zero"])

@@ -37,7 +37,7 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
     """
     source = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        text = read_text_bounded(path, MAX_FILE_BYTES, "a model file")
     except FileNotFoundError:
         raise ModelError("no such model file", source=source) from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -104,6 +104,21 @@ def parse_override(item: str) -> tuple[str, Any]:
         raise ModelError(_toml_limit(exc), source=f"--set {key}") from None
     _check_depth(value, f"--set {key}", key)
     return key, value
+
+
+MAX_FILE_BYTES = 16 * 1024 ** 2
+"""Largest model file read (16 MiB): a machine is a few kilobytes of TOML; a bound keeps ``/dev/zero``
+or a mistaken multi-gigabyte file from being read into memory whole."""
+
+
+def read_text_bounded(path: str | os.PathLike, limit: int, what: str) -> str:
+    """The UTF-8 text of ``path``, refused (:class:`ModelError`) beyond ``limit`` bytes, which are
+    never all read: at most ``limit + 1`` bytes are (a device such as ``/dev/zero`` never ends)."""
+    with open(path, "rb") as stream:
+        data = stream.read(limit + 1)
+    if len(data) > limit:
+        raise ModelError(f"{what} larger than {limit // 1024 ** 2} MiB; expected a text file", source=str(path))
+    return data.decode("utf-8")
 
 
 MAX_DEPTH = 32
