@@ -66,7 +66,8 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: fl
                                  path=f"axes.{loop.axis}.controller.{key}", value=getattr(ctrl, key))
     n_pos = -(-n_steps // Np)
     per_step = recorded if recorded is not None else _values_per_step(first, profile, nonlinear)
-    _require_memory(n_steps, per_step, n_pos)
+    delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in loops)
+    _require_memory(n_steps, per_step, n_pos, delayed)
     t_pos = np.arange(n_pos) * Np * h
     table = SetpointTable(*profile.evaluate(t_pos))
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
@@ -81,13 +82,14 @@ def _values_per_step(loop: "ServoLoop", profile: "Profile", nonlinear: bool) -> 
     return len(program.record) + program.continuous.A.shape[0] + 2 * program.continuous.G.shape[0]
 
 
-def _require_memory(n_steps: int, per_step: int, n_pos: int) -> None:
+def _require_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -> None:
     """Refuse a run whose arrays cannot fit: the kernel's records (``per_step`` values of 8 bytes per
-    step), as much again for the named and derived signals and the metrics computed from them, and
-    the setpoint table (time, position, velocity, acceleration and the kernel's 3 columns)."""
+    step), as much again for the named and derived signals and the metrics computed from them, the
+    setpoint table (time, position, velocity, acceleration and the kernel's 3 columns) and the ring
+    buffers of the computation delays (``delayed`` samples)."""
     from ..budget import require_memory
 
-    nbytes = 8.0 * (2.0 * n_steps * per_step + 7.0 * n_pos)
+    nbytes = 8.0 * (2.0 * n_steps * per_step + 7.0 * n_pos + delayed)
     require_memory(nbytes, "this simulation", f"{n_steps} steps x {per_step} values x 8 bytes, twice, "
                                               f"and the setpoint table")
 
