@@ -1,6 +1,9 @@
 """Whether a mechanics' numbers mean anything in double precision: coefficient range, pole accuracy.
 
-Two checks, both on the model as given (so a message names couplings and bodies, not numbers):
+Two checks, both on the model as given (so a message names couplings and bodies, not numbers): the
+range in :func:`~sicomat.mechanics.build_mechanics`, the poles in :func:`~sicomat.modal.modal_analysis`,
+:func:`~sicomat.loop.build_servo_loop` and the ``check`` and ``reduce`` commands
+(:func:`check_axis_mechanics`).
 
 * **Range.** Every mass, inertia, stiffness, damping and friction coefficient must lie in
   [1e-100, 1e100]. The analyses form products of up to three of them (``m·ω²``, the loop's

@@ -20,9 +20,8 @@ def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
           json_: bool = JsonOption) -> None:
     """Validate a model file and summarise its axes, dofs and couplings."""
     with guarded(model):
-        from .tables import check_payload, print_check
-
         from ..conditioning import check_axis_mechanics
+        from .tables import check_payload, print_check
 
         machine = load(model, set_)
         mechanics = {name: check_axis_mechanics(name, axis.mechanics) for name, axis in machine.axes.items()}
