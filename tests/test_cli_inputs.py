@@ -69,6 +69,8 @@ OPTIONS = [
     (["step", P5M4S, "--Ti", "1e-300"], "--Ti"),
     (["step", P5M4S, "--duration", "1e-9"], "shorter than two samples"),
     (["modal"], "Missing argument 'model'"),
+    (["--bogus"], "No such option: --bogus"),
+    (["nosuchcommand"], "No such command 'nosuchcommand'"),
     (["reduce", P5M4S, "--method", "balanced", "--order", "4", "--band", "1e300:1e301"], "--band: expected frequencies"),
     (["reduce", P5M4S, "--method", "balanced", "--order", "4", "--band", "nan:inf"], "--band"),
     (["reduce", P5M4S, "--order", "-1"], "--order"),

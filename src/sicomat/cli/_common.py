@@ -70,19 +70,29 @@ class OneLineErrors(typer.core.TyperGroup):
     missing argument) is one line on stderr and exit status 2, like every other bad input, instead of
     click's usage block."""
 
-    def invoke(self, ctx: Any) -> Any:
-        try:   # recent Typer carries its own copy of click
-            from typer._click import exceptions as click  # type: ignore[import-not-found]
-        except ImportError:  # pragma: no cover
-            from click import exceptions as click
-
-        try:
+    def invoke(self, ctx: Any) -> Any:          # a command's options and arguments
+        with _one_line_usage_errors(lambda: ctx.command_path):
             return super().invoke(ctx)
-        except click.NoArgsIsHelpError:
-            raise
-        except click.UsageError as exc:
-            where = exc.ctx.command_path if exc.ctx is not None else ctx.command_path
-            _fail(" ".join(exc.format_message().split()) + f" (see '{where} --help')")
+
+    def make_context(self, info_name: Any, args: Any, parent: Any = None, **extra: Any) -> Any:
+        with _one_line_usage_errors(lambda: str(info_name)):   # the program's own options
+            return super().make_context(info_name, args, parent=parent, **extra)
+
+
+@contextmanager
+def _one_line_usage_errors(command_path) -> Iterator[None]:
+    try:   # recent Typer carries its own copy of click
+        from typer._click import exceptions as click  # type: ignore[import-not-found]
+    except ImportError:  # pragma: no cover
+        from click import exceptions as click
+
+    try:
+        yield
+    except click.NoArgsIsHelpError:
+        raise
+    except click.UsageError as exc:
+        where = exc.ctx.command_path if exc.ctx is not None else command_path()
+        _fail(" ".join(exc.format_message().split()) + f" (see '{where} --help')")
 
 
 @contextmanager
