@@ -145,7 +145,7 @@ def test_step_metrics_of_a_settling_move():
 def test_bad_controller_inputs():
     with pytest.raises(ModelError, match="whole multiple"):
         _machine(position_period=2.5 * H)
-    with pytest.raises(ModelError, match="greater than or equal to 0"):
+    with pytest.raises(ModelError, match="greater than 0"):
         _machine(Kv=-1.0)
     with pytest.raises(ModelError, match="unknown sensor"):
         machine_from_dict({"axes": {"X": {

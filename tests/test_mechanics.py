@@ -16,6 +16,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from sicomat import (BeltRackSpec, ChainSpec, LumpedSpec, build_mechanics, load_model,
                      modal_analysis)
 from sicomat.model import GROUND
+from sicomat.errors import ModelError
 
 
 EPS = np.finfo(float).eps
@@ -292,6 +293,12 @@ def _check_matrices(mech):
         assert ev.min() >= -1e-9 * max(np.abs(ev).max(), 1e-300)
 
 
+def _risk(mech) -> float:
+    springs = [link for link in mech.couplings if link.stiffness > 0]
+    local = [link.stiffness * float(np.sum(link.g ** 2 / np.diag(mech.mass))) for link in springs]
+    return EPS * max(local) / min(local)
+
+
 def _omega2(res):
     return np.sort((2 * np.pi * res.undamped_hz) ** 2)
 
@@ -354,7 +361,14 @@ def test_random_trees(data, perm_seed):
     spec = LumpedSpec.model_validate(data)
     mech = build_mechanics(spec)
     _check_matrices(mech)
-    res = modal_analysis(mech)
+    try:
+        res = modal_analysis(mech)
+    except ModelError as exc:
+        # never wrong numbers: a refusal only where the springs' stiffness-to-mass ratios spread so far
+        # that the state matrix's soft poles may carry no digit (sicomat.conditioning's pre-check)
+        assert "differ too much" in str(exc)
+        assert _risk(mech) > 1e-6
+        return
     _check_modal(data, mech, res)
 
     # renumbering the bodies changes nothing but the order of the dofs

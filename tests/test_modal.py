@@ -266,3 +266,26 @@ def test_plot_returns_a_figure(name):
     assert isinstance(fig, Figure)
     visible = [ax for ax in fig.axes if ax.get_visible()]
     assert len(visible) == len(res.modes)
+
+
+def test_a_split_rigid_double_pole_is_not_taken_for_a_flexible_mode():
+    # Found by the passivity guard (a damping ratio of -2e-8 at 1.8e-8 Hz): a free chain whose
+    # rigid double pole rounding splits into +-1.1e-7 j, beside a damper that makes one mode
+    # overdamped (real poles -198.7 and -1.01). Oracle: the state matrix's poles themselves,
+    # paired as the modes are (complex pairs: |lambda|; the real pair: sqrt(l1 l2), zeta from their sum).
+    k = 10 ** 2.5
+    mech = build_mechanics(ChainSpec(type="chain", masses=[1, 1, 1, 10, 1, 1], stiffnesses=[k, 100, k, 100, 100],
+                                     dampings=[0, 0, 0, 0, 100]))
+    res = modal_analysis(mech)
+    poles = np.linalg.eigvals(mech.state_space().A)
+    poles = poles[np.abs(poles) > 1e-3]                        # the rigid pair (|lambda| ~ 1e-7) apart
+    pairs = np.sort(np.abs(poles[poles.imag > 0]))
+    real = np.sort(poles[np.abs(poles.imag) == 0].real)
+    assert real.size == 2                                      # exactly one overdamped mode
+    expected = np.sort(np.append(pairs, np.sqrt(real[0] * real[1])))
+    flexible = [m for m in res.modes if not m.rigid]
+    # eigenvalues of this well-scaled matrix (|A| ~ 400) are accurate to ~1e-13 relative: 1e-9 is loose
+    assert_allclose(np.sort([TWO_PI * m.frequency_hz for m in flexible]), expected, rtol=1e-9)
+    assert all(m.damping_ratio >= 0 for m in flexible)
+    over = max(flexible, key=lambda m: m.damping_ratio)
+    assert_allclose(over.damping_ratio, -(real[0] + real[1]) / (2 * np.sqrt(real[0] * real[1])), rtol=1e-9)

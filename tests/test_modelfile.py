@@ -154,6 +154,14 @@ ERROR_CASES = [
                       'stiffnesses = [10]\n', "axes.X.mechanics.stiffnesses", "[10.0]"),
     ("bad-body-name", BASE.replace("bodies.b]", "bodies.2b]").replace('["a", "b"]', '["a", "2b"]'),
      "axes.X.mechanics.bodies", "2b"),
+    ("mass-string-without-unit", BASE.replace("mass = 2.0", 'mass = "150"'), "axes.X.mechanics.bodies.a.mass",
+     "150"),
+    ("mass-integer-beyond-float", BASE.replace("mass = 2.0", "mass = 1" + "0" * 400),
+     "axes.X.mechanics.bodies.a.mass", None),
+    ("nested-too-deep", BASE.replace("mass = 2.0", "mass = " + "[" * 40 + "]" * 40),
+     "axes.X.mechanics.bodies.a.mass", None),
+    ("torque-for-a-stiffness", BASE.replace("stiffness = 100.0", 'stiffness = "3 kg*rad/s^2"'),
+     "axes.X.mechanics.couplings.k.stiffness", None),
 ]
 
 
@@ -260,3 +268,54 @@ def test_overrides_are_validated_together_and_an_error_names_the_closest_one():
         load_model(path, ["axes.X.mechanics.bodies.load.mass=300 kg", "axes.X.controller.velocity_loop=continuous"])
     assert err.value.source == "--set axes.X.controller.velocity_loop=continuous"
     assert err.value.path == "axes.X.controller.velocity_delay"
+
+
+# --------------------------------------------------------------------------- servo blocks
+RIGID = (EXAMPLES_DIR / "rigid_1m.toml").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("old, new, key_path", [
+    ('Kp_normalized = "240 1/s"', "Kp_normalized = 0", "axes.X.controller.Kp_normalized"),
+    ('Kp_normalized = "240 1/s"', "Kp_normalized = -3", "axes.X.controller.Kp_normalized"),
+    ('Kp_normalized = "240 1/s"', "Kp = 0", "axes.X.controller.Kp"),
+    ('Kv = "78.5 1/s"', "Kv = 0", "axes.X.controller.Kv"),
+    ('Ti = "4.32 ms"', "Ti = 0", "axes.X.controller.Ti"),
+    ('Kv = "78.5 1/s"', 'Kv = "12 Hz"', "axes.X.controller.Kv"),            # cycles or radians?
+    ('bandwidth = "1000 Hz"', 'bandwidth = "60000 rpm"', "axes.X.drive.bandwidth"),
+    ('bandwidth = "1000 Hz"', "bandwidth = inf", "axes.X.drive.bandwidth"),
+    ('position_period = "1 ms"', 'position_period = "1e6 s"', "axes.X.controller.position_period"),  # 8e9 Tv
+    ('bandwidth = "1000 Hz"', 'time_constant = "1e-300 s"', "axes.X.drive.time_constant"),
+    ('force_constant = "120 N/A"', "force_constant = nan", "axes.X.drive.force_constant"),
+    ('position_sensor = "scale"', 'position_sensor = "scale"\nvelocity_filter = {type = "low-pass", '
+                                  'frequency = 500, damping = inf}', "axes.X.controller.velocity_filter.damping"),
+])
+def test_servo_values_outside_their_sense_are_refused(tmp_path, old, new, key_path):
+    assert old in RIGID
+    path = tmp_path / "servo.toml"
+    path.write_text(RIGID.replace(old, new), encoding="utf-8")
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    assert key_path in str(info.value) and str(path) in str(info.value)
+
+
+def test_drive_bandwidth_in_rad_per_s_is_converted_to_hz(tmp_path):
+    path = tmp_path / "servo.toml"
+    path.write_text(RIGID.replace('bandwidth = "1000 Hz"', 'bandwidth = "6283.185307179586 rad/s"'))
+    assert_allclose(load_model(path).axes["X"].drive.bandwidth, 1000.0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("item", ["axes.X.mechanics.bodies.table.mass=" + "[" * 40 + "]" * 40,
+                                  "axes.X.mechanics.bodies.table.mass=" + "[" * 3000 + "]" * 3000,
+                                  "axes.X.mechanics.bodies.table.mass=" + "9" * 5000,
+                                  "axes.X.mechanics.bodies.table.mass='150'"])
+def test_overrides_nested_too_deep_or_too_long_are_model_errors(item):
+    with pytest.raises(ModelError) as info:
+        load_model(EXAMPLES_DIR / "rigid_1m.toml", [item])
+    assert "--set axes.X.mechanics.bodies.table.mass" in str(info.value)
+
+
+def test_a_file_nested_too_deep_for_the_toml_parser_is_a_model_error(tmp_path):
+    path = tmp_path / "deep.toml"
+    path.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(ModelError, match="nested too deeply"):
+        load_model(path)

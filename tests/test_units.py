@@ -18,8 +18,74 @@ def test_plain_numbers_are_si(value):
     assert isinstance(parse_quantity(value, UNITS["mass"]), float)
 
 
-def test_plain_number_in_a_string_is_si():
-    assert parse_quantity("3667", UNITS["mass"]) == 3667.0
+@pytest.mark.parametrize("text", ["3667", " 150 ", "1e3", "2*3"])
+def test_a_number_in_quotes_without_unit_is_refused(text):
+    # "150" in quotes is a unit left out (150 g? 150 kg?), not an SI number: say how to write either
+    with pytest.raises(ValueError, match=r"no unit.*without quotes.*'.* kg'"):
+        parse_quantity(text, UNITS["mass"])
+
+
+@pytest.mark.parametrize("text, expected", [("0.5", 0.5), ("50 %", 0.5)])
+def test_a_number_in_quotes_is_fine_for_a_plain_number(text, expected):
+    assert parse_quantity(text, UNITS["fraction"]) == expected
+
+
+# ------------------------------------------------------------------ angles in the wrong sense
+# pint treats radians as dimensionless: rad/s "is" 1/s "is" Hz unless parse_quantity says otherwise.
+@pytest.mark.parametrize("text, expected", [
+    ("6283.185307179586 rad/s", 1000.0),       # angular frequency -> Hz: / 2 pi
+    ("360 deg/s", 1.0),                         # one turn per second
+    ("1 kHz", 1000.0),
+    ("1000 1/s", 1000.0),
+])
+def test_angular_frequency_for_a_frequency_in_hz(text, expected):
+    for _ in range(2):                          # uncached, then cached factor
+        assert_allclose(parse_quantity(text, UNITS["frequency"]), expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize("text", ["60000 rpm", "1000 rev/s", "1000 rps", "5 turn/min", "60 krpm"])
+def test_rotational_speed_is_not_a_frequency(text):
+    for _ in range(2):
+        with pytest.raises(ValueError, match="rotational speed"):
+            parse_quantity(text, UNITS["frequency"])
+
+
+def test_motor_constants_per_rpm_convert_through_their_radians():
+    # a datasheet's back-EMF of 60 V per 1000 rpm: 60 / (1000 * 2 pi / 60) V*s/rad
+    assert_allclose(parse_quantity("60 V/krpm", UNITS["rotary_emf"]), 60 / (1000 * 2 * math.pi / 60), rtol=1e-12)
+    assert_allclose(parse_quantity("2 N*m/deg", UNITS["torsional_stiffness"]), 2 * 180 / math.pi, rtol=1e-12)
+
+
+def test_frequency_in_hz_for_an_angular_frequency():
+    assert_allclose(parse_quantity("10 Hz", ANGULAR_SPEED), 20 * math.pi, rtol=1e-12)
+    assert_allclose(parse_quantity("2 kHz", ANGULAR_SPEED), 4000 * math.pi, rtol=1e-12)
+
+
+def test_gain_in_1_per_s_takes_rad_per_s_but_not_hz():
+    assert parse_quantity("240 rad/s", UNITS["inverse_time"]) == 240.0
+    assert parse_quantity("240 1/s", UNITS["inverse_time"]) == 240.0
+    for text in ("40 Hz", "10 deg/s", "100 rpm"):
+        with pytest.raises(ValueError):
+            parse_quantity(text, UNITS["inverse_time"])
+
+
+@pytest.mark.parametrize("text, kind", [("1e4 N*m/rad", "torque"), ("3 kg*rad", "mass"),
+                                        ("2 N*m*rad", "torsional_stiffness"), ("5 mm*rad", "radius")])
+def test_angles_the_quantity_does_not_have_are_refused(text, kind):
+    with pytest.raises(ValueError, match="angle"):
+        parse_quantity(text, UNITS[kind])
+
+
+@pytest.mark.parametrize("value", [1e101, "1e300 kg", -1e200, 1e-101, "1e-300 g"])
+def test_magnitudes_beyond_products_of_three_in_double_precision_are_refused(value):
+    with pytest.raises(ValueError, match="magnitude"):
+        parse_quantity(value, UNITS["mass"])
+    assert parse_quantity(0, UNITS["mass"]) == 0.0 and parse_quantity(1e100, UNITS["mass"]) == 1e100
+
+
+def test_integers_beyond_the_float_range_are_refused():
+    with pytest.raises(ValueError, match="too large"):
+        parse_quantity(10 ** 400, UNITS["mass"])
 
 
 @pytest.mark.parametrize(("text", "kind", "expected"), [
@@ -91,7 +157,9 @@ def test_percent_as_plain_number_is_scaled():
 FAST_CASES = [("250 kg", "mass"), ("9 ms", "time"), ("10 mm/rev", "radius"), ("80 %", "fraction"),
               ("1e3 mm", "length"), ("-5.5e-3 N*m/rad", "torsional_stiffness"), ("0.125 um", "length"),
               ("3 kg m", "force_constant"), ("2.5 mm / 2 s", "velocity"), ("7 g*cm**2", "inertia"),
-              ("12 mH", "inductance"), ("45 deg", "angle"), (".5 N*s/m", "linear_damping")]
+              ("12 mH", "inductance"), ("45 deg", "angle"), (".5 N*s/m", "linear_damping"),
+              ("6283.185307179586 rad/s", "frequency"), ("360 deg/s", "frequency"), ("240 rad/s", "inverse_time"),
+              ("60000 rpm", "frequency"), ("40 Hz", "inverse_time"), ("1e4 N*m/rad", "torque")]
 
 
 @pytest.mark.parametrize("text, kind", FAST_CASES)

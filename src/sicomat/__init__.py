@@ -1,6 +1,6 @@
 """SICOMAT: SImulation and COntrol analysis of MAchine Tool axes."""
 
-from .errors import AnalysisError, ModelError, SicomatError
+from .errors import AnalysisError, ModelError, ResourceError, SicomatError
 from .mechanics import Dof, Mechanics, build_mechanics
 from .modal import ModalResult, Mode, modal_analysis
 from .model import (Actuator, Axis, BeltRackSpec, Body, ChainSpec, Coupling, Friction, LumpedSpec,
@@ -12,7 +12,7 @@ from .plant import Plant, mechanics_plant
 __version__ = "0.1.0"
 
 __all__ = [
-    "SicomatError", "ModelError", "AnalysisError",
+    "SicomatError", "ModelError", "AnalysisError", "ResourceError",
     "Machine", "Axis", "LumpedSpec", "ChainSpec", "BeltRackSpec", "Body", "Coupling", "Friction",
     "Actuator", "Sensor",
     "load_model", "save_model", "dump_model", "machine_from_dict", "with_overrides",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["SicomatError", "ModelError", "AnalysisError", "OutputError"]
+__all__ = ["SicomatError", "ModelError", "AnalysisError", "OutputError", "ResourceError"]
 
 
 class SicomatError(Exception):
@@ -36,13 +36,13 @@ class ModelError(SicomatError, ValueError):
     def _format(self) -> str:
         parts = []
         if self.source:
-            parts.append(str(self.source))
+            parts.append(_short(str(self.source)))
         if self.path:
-            parts.append(self.path)
+            parts.append(_short(self.path))
         where = ": ".join(parts)
         what = self.message
         if self.has_value:
-            what = f"{what} (got {self.value!r})"
+            what = f"{what} (got {_short(repr(self.value))})"
         return f"{where}: {what}" if where else what
 
     def with_source(self, source: str) -> "ModelError":
@@ -51,9 +51,20 @@ class ModelError(SicomatError, ValueError):
                           has_value=self.has_value)
 
 
+def _short(text: str, limit: int = 200) -> str:
+    """``text`` cut to ``limit`` characters for a one-line message (a 60 000-character ``--set``
+    value is echoed by its start and its length)."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
 class AnalysisError(SicomatError, RuntimeError):
     """An analysis cannot be carried out on a valid model (e.g. no actuator to excite it)."""
 
 
 class OutputError(SicomatError, OSError):
     """An output file (figure, CSV, model) cannot be written where it was asked for."""
+
+
+class ResourceError(SicomatError, MemoryError):
+    """A piece of work would need more memory than allowed (see :mod:`sicomat.budget`); raised from
+    an estimate, before anything is allocated."""

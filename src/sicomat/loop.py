@@ -104,7 +104,9 @@ def build_servo_loop(machine: "Machine", axis: str | None = None) -> ServoLoop:
         missing = "controller" if spec.controller is None else "drive"
         raise ModelError(f"the axis has no {missing}; a servo loop needs [axes.{name}.drive] and "
                          f"[axes.{name}.controller]", path=f"axes.{name}.{missing}")
-    mech = build_mechanics(spec.mechanics)
+    from .conditioning import check_axis_mechanics
+
+    mech = check_axis_mechanics(name, spec.mechanics)   # the loop's analyses need resolvable poles
     if not mech.actuators:
         raise ModelError("the mechanics has no actuator for the drive to command",
                          path=f"axes.{name}.mechanics.actuators")
@@ -324,7 +326,7 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
         blk = block(diff, [s("velocity.sampled")], [s("velocity.raw")], 1)
         ops += [p.LinearOutput(block=blk), p.LinearUpdate(block=blk)]
     if ctrl.velocity_filter is not None:
-        flt = block(_filter(ctrl.velocity_filter, h, "controller.velocity_filter"), [s("velocity.raw")],
+        flt = block(_filter(ctrl.velocity_filter, h, f"axes.{loop.axis}.controller.velocity_filter"), [s("velocity.raw")],
                     [s("velocity.measured")], 1)
         ops += [p.LinearOutput(block=flt), p.LinearUpdate(block=flt)]
     else:
@@ -365,7 +367,7 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     signal = "current.reference"
     for i, spec in enumerate(ctrl.current_filters):
         out = f"current.filter{i + 1}"
-        flt = block(_filter(spec, h, f"controller.current_filters.{i}"), [s(signal)], [s(out)], 1)
+        flt = block(_filter(spec, h, f"axes.{loop.axis}.controller.current_filters.{i}"), [s(signal)], [s(out)], 1)
         ops += [p.LinearOutput(block=flt), p.LinearUpdate(block=flt)]
         signal = out
     delay(signal, "current.delayed", ctrl.velocity_delay, 1)

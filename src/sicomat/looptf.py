@@ -102,8 +102,9 @@ class LoopAnalysis:
     # ------------------------------------------------------------------ velocity loop (rate Tv)
     def _blocks(self) -> tuple[list[DiscreteSS], DiscreteSS | None]:
         ctrl, T = self.loop.controller, self.loop.controller.velocity_period
-        current = [_filter(f, T, f"controller.current_filters.{i}") for i, f in enumerate(ctrl.current_filters)]
-        velocity = _filter(ctrl.velocity_filter, T, "controller.velocity_filter") if ctrl.velocity_filter else None
+        where = f"axes.{self.loop.axis}.controller"
+        current = [_filter(f, T, f"{where}.current_filters.{i}") for i, f in enumerate(ctrl.current_filters)]
+        velocity = _filter(ctrl.velocity_filter, T, f"{where}.velocity_filter") if ctrl.velocity_filter else None
         return current, velocity
 
     def velocity_factors(self, omega: np.ndarray, Kp: float, Ti: float):
@@ -173,6 +174,10 @@ class LoopAnalysis:
         T = ctrl.velocity_period
         current, velocity = self._blocks()
         capacity = self.Phi.shape[0] + 2 + 2 * (len(current) + 1) + ctrl.velocity_delay
+        from .budget import require_dense
+
+        require_dense(capacity, "this analysis of the sampled velocity loop",
+                      f"one per sample of the velocity_delay of {ctrl.velocity_delay}")
         b = _Builder(capacity, n_inputs=2)
         x = b.block(self.Phi.shape[0])
         pos_raw = b.row(x, self.c_pos)

@@ -236,6 +236,16 @@ def build_mechanics(spec: "MechanicsSpec") -> Mechanics:
         sensors.append(Measurement(name, _frozen(vector), sensor.kind, dofs[index[sensor.body]].kind,
                                    step=sensor.step))
 
-    return Mechanics(dofs=dofs, mass=mass, damping=damping, stiffness=stiffness,
+    from .conditioning import check_numeric_range
+
+    check_numeric_range({**{f"bodies.{name}.{'mass' if body.mass is not None else 'inertia'}": body.value
+                            for name, body in lumped.bodies.items()},
+                         **{f"couplings.{link.name}.{key}": getattr(link, key)
+                            for link in couplings for key in ("stiffness", "damping")},
+                         **{f"frictions.{link.name}.{key}": value for link in frictions
+                            for key, value in (("viscous", link.damping), ("coulomb", link.coulomb),
+                                               ("static", link.static))}})
+    mech = Mechanics(dofs=dofs, mass=mass, damping=damping, stiffness=stiffness,
                      actuators=tuple(actuators), sensors=tuple(sensors),
                      couplings=couplings, frictions=frictions)
+    return mech

@@ -17,6 +17,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["Mode", "ModalResult", "modal_analysis"]
 
 _TWO_PI = 2.0 * np.pi
+_EPS = float(np.finfo(float).eps)
 
 
 @dataclass(frozen=True)
@@ -160,6 +161,9 @@ def modal_analysis(mech: "Mechanics", *, progress: "ProgressCallback | None" = N
     >>> [round(float(f) * 2 * 3.141592653589793, 6) for f in res.undamped_hz]
     [0.0, 2.0]
     """
+    from .conditioning import check_resolvable
+
+    check_resolvable(mech)
     from .progress import notify
 
     n = mech.n
@@ -185,8 +189,27 @@ def modal_analysis(mech: "Mechanics", *, progress: "ProgressCallback | None" = N
                           undamped_hz=float(omega[i] / _TWO_PI),
                           shape={d: float(v) for d, v in zip(mech.dof_names, phi)},
                           rigid=i < r, participation=float(participation[i])))
+    _check_passive(modes)
     order = sorted(range(n), key=lambda i: (0 if modes[i].rigid else 1, modes[i].frequency_hz))
     return ModalResult(dofs=mech.dof_names, modes=tuple(modes[i] for i in order), poles=poles)
+
+
+_NEGATIVE_DAMPING = float(np.sqrt(np.finfo(float).eps))
+"""A passive mechanics (M > 0, K ≥ 0, D ≥ 0) has damping ratios ≥ 0: one below −√ε (1.5e-8) is not
+rounding noise of a resolved pole (an undamped 1e17-spread chain gives −6e-14) but a lost one."""
+
+
+def _check_passive(modes: list[Mode]) -> None:
+    """Refuse to report modes that cannot be right: non-finite figures, or a negative damping ratio
+    of a passive mechanics (see :mod:`sicomat.conditioning` for the check made on the model)."""
+    from .errors import AnalysisError
+
+    for m in modes:
+        figures = (m.frequency_hz, m.damping_ratio, m.damped_frequency_hz, m.undamped_hz, m.participation)
+        if not all(np.isfinite(figures)) or m.damping_ratio < -_NEGATIVE_DAMPING:
+            raise AnalysisError(f"the modal analysis of the mode dominated by {m.dominant_dof!r} is not resolved in "
+                                "double precision (a passive mechanics cannot have a negative damping ratio or "
+                                "non-finite figures); the stiffnesses or masses differ too much")
 
 
 def _undamped(mech: "Mechanics") -> tuple[np.ndarray, np.ndarray, int]:
@@ -230,7 +253,13 @@ def _match_poles(shapes, omega, r, poles, pos_vectors, M, D):
     if flex.size == 0:
         return freq, zeta, damped
     scale = max(np.max(np.abs(poles)), 1.0)
-    oscillating = np.flatnonzero(poles.imag > 1e-12 * scale)
+    # A rigid motion is a double pole at 0; rounding (a backward error eps*|A| on a defective
+    # double zero) splits it into about +-sqrt(eps*|A|), e.g. +-1.1e-7 j beside |A| ~ 200: such a
+    # pair is not a flexible mode's pole. At most 2r poles, each below 10 sqrt(eps*scale), are set aside.
+    near_zero = [j for j in np.argsort(np.abs(poles))[: 2 * r] if abs(poles[j]) <= 10.0 * np.sqrt(_EPS * scale)]
+    usable = np.ones(poles.size, dtype=bool)
+    usable[near_zero] = False
+    oscillating = np.flatnonzero((poles.imag > 1e-12 * scale) & usable)
     matched = set()
     if oscillating.size:
         mac = _mac(shapes[:, flex], pos_vectors[:, oscillating])
@@ -241,7 +270,7 @@ def _match_poles(shapes, omega, r, poles, pos_vectors, M, D):
             k = flex[i]
             freq[k], zeta[k], damped[k] = abs(lam), -lam.real / abs(lam), lam.imag
             matched.add(k)
-    real_idx = [j for j in np.flatnonzero(np.abs(poles.imag) <= 1e-12 * scale)
+    real_idx = [j for j in np.flatnonzero((np.abs(poles.imag) <= 1e-12 * scale) & usable)
                 if abs(poles[j]) > 1e-9 * scale]
     for k in flex:
         if k in matched:

@@ -37,10 +37,7 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
     """
     source = str(path)
     text = _read_text(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ModelError(f"not a valid TOML file: {exc}", source=source) from None
+    data = _read_toml(text, source)
     machine = machine_from_dict(data, source=source)
     settings = [(item, *parse_override(item)) for item in overrides]
     if not settings:
@@ -60,6 +57,7 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
 
 def machine_from_dict(data: Mapping[str, Any], source: str | None = None) -> Machine:
     """Validate a plain mapping (as read from TOML) into a :class:`Machine`."""
+    _check_depth(data, source)
     try:
         return Machine.model_validate(data)
     except ValidationError as exc:
@@ -89,12 +87,70 @@ def parse_override(item: str) -> tuple[str, Any]:
     if not sep or not key:
         raise ModelError("expected KEY=VALUE, e.g. axes.X.mechanics.bodies.load.mass='300 kg'",
                          source="--set", value=item)
+    if key.count(".") >= MAX_DEPTH:
+        raise ModelError(f"the key path is more than {MAX_DEPTH} levels deep; no model key is", source="--set",
+                         value=key)
     raw = raw.strip()
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
+    except (RecursionError, ValueError) as exc:   # nesting too deep, an integer of > 4300 digits
+        raise ModelError(_toml_limit(exc), source=f"--set {key}") from None
+    _check_depth(value, f"--set {key}", key)
     return key, value
+
+
+MAX_FILE_BYTES = 16 * 1024 ** 2
+"""Largest model file read (16 MiB): a machine is a few kilobytes of TOML; a bound keeps ``/dev/zero``
+or a mistaken multi-gigabyte file from being read into memory whole."""
+
+
+def read_text_bounded(path: str | os.PathLike, limit: int, what: str) -> str:
+    """The UTF-8 text of ``path``, refused (:class:`ModelError`) beyond ``limit`` bytes, which are
+    never all read: at most ``limit + 1`` bytes are (a device such as ``/dev/zero`` never ends)."""
+    with open(path, "rb") as stream:
+        data = stream.read(limit + 1)
+    if len(data) > limit:
+        raise ModelError(f"{what} larger than {limit // 1024 ** 2} MiB; expected a text file", source=str(path))
+    return data.decode("utf-8")
+
+
+MAX_DEPTH = 32
+"""Deepest nesting of tables and arrays accepted in a model file or a ``--set`` value: the schema
+nests about 8 levels (``axes.X.mechanics.couplings.k.between.0``); far deeper input is a mistake (or
+an attack) and would otherwise exhaust Python's recursion limit in the validators."""
+
+
+def _read_toml(text: str, source: str) -> dict[str, Any]:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ModelError(f"not a valid TOML file: {exc}", source=source) from None
+    except (RecursionError, ValueError) as exc:   # the TOML parser's own limits
+        raise ModelError(_toml_limit(exc), source=source) from None
+
+
+def _toml_limit(exc: BaseException) -> str:
+    if isinstance(exc, RecursionError):
+        return f"values are nested too deeply to read (at most {MAX_DEPTH} levels of tables and arrays)"
+    if "digits" in str(exc):
+        return "a number has more than 4300 digits; write it in floating-point form (e.g. 1e30)"
+    return f"cannot read the value ({exc})"
+
+
+def _check_depth(data: Any, source: str | None, prefix: str = "") -> None:
+    """Refuse tables and arrays nested deeper than :data:`MAX_DEPTH`, naming the key path (iterative:
+    no recursion on the user's nesting)."""
+    stack = [(data, prefix, 0)]
+    while stack:
+        node, where, depth = stack.pop()
+        items = list(node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ())
+        if items and depth >= MAX_DEPTH:
+            raise ModelError(f"nested too deeply (more than {MAX_DEPTH} levels of tables and arrays)",
+                             source=source, path=where or None)
+        for k, child in items:
+            stack.append((child, f"{where}.{k}" if where else str(k), depth + 1))
 
 
 def _set_path(data: Mapping[str, Any], key: str, value: Any, source: str) -> dict[str, Any]:
@@ -185,10 +241,7 @@ def model_text(machine: Machine, *, based_on: str | os.PathLike | None = None, h
     new = dump_data(machine)
     if based_on is not None:
         original = _read_text(based_on)
-        try:
-            old = dump_data(machine_from_dict(tomllib.loads(original), source=str(based_on)))
-        except tomllib.TOMLDecodeError as exc:
-            raise ModelError(f"not a valid TOML file: {exc}", source=str(based_on)) from None
+        old = dump_data(machine_from_dict(_read_toml(original, str(based_on)), source=str(based_on)))
         for keep_units in (True, False):
             text = edited_model_text(original, old, new, header=header, keep_units=keep_units)
             if _reads_as(text, new):
@@ -222,7 +275,7 @@ def _close(a: Any, b: Any) -> bool:
 def _read_text(path: str | os.PathLike) -> str:
     source = str(path)
     try:
-        return Path(path).read_text(encoding="utf-8")
+        return read_text_bounded(path, MAX_FILE_BYTES, "a model file")
     except FileNotFoundError:
         raise ModelError("no such model file", source=source) from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
+from .budget import require_memory
 from .errors import ModelError
 from .trajectory import JerkProfile, scurve_sequence
 
@@ -460,7 +461,13 @@ def interpolate(path: Path, feed: float | None, max_acceleration: float, max_jer
         lengths.append(sum(s.length for s in segs))
         limits.append(min([feeds[first]] + [math.sqrt(a_max * s.radius) for s in segs if isinstance(s, Arc)]))
     profile = scurve_sequence(lengths, limits, a_max, j_max, start=start)
-    n = int(math.ceil(profile.duration / period - 1e-9)) + 1
+    n_float = math.ceil(profile.duration / period - 1e-9) + 1.0
+    # time, s and its three derivatives, and position, velocity, acceleration per axis; as much again
+    # for the temporaries of the evaluation (tangents, curvatures)
+    values = 5 + 3 * path.dimension
+    require_memory(16.0 * n_float * values, "this path interpolation",
+                   f"{n_float:.0f} samples of {period:g} s x {values} values x 8 bytes, twice")
+    n = int(n_float)
     t = start + period * np.arange(n)
     s, sd, sdd = profile.evaluate(t)
     s = np.clip(s, 0.0, path.length)

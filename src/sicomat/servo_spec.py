@@ -119,6 +119,8 @@ class FilterSpec(Spec):
 
 
 Sampling = Annotated[float, quantity("time"), Field(ge=0)]
+MAX_PERIOD_RATIO = 10000
+"""Most velocity periods in one position period accepted (see ``ControllerSpec``)."""
 
 
 class ControllerSpec(Spec):
@@ -144,7 +146,7 @@ class ControllerSpec(Spec):
     position_sensor: Name
     velocity_sensor: Name | None = None
     Kv: Gain
-    Kp: float | None = Field(default=None, ge=0)
+    Kp: float | None = Field(default=None, gt=0)
     Kp_normalized: Gain | None = None
     Ti: Time
     anti_windup: Literal["clamping", "back-calculation", "none"] = "clamping"
@@ -195,6 +197,17 @@ class ControllerSpec(Spec):
         if abs(ratio - round(ratio)) > 1e-9 * max(ratio, 1.0) or round(ratio) < 1:
             raise fail("the position period must be a whole multiple of the velocity period {tv} s",
                        "position_period", self.position_period, tv=self.velocity_period)
+        if round(ratio) > MAX_PERIOD_RATIO:
+            raise fail("the position period is more than {limit} velocity periods ({tv} s): CNCs use 1 to 32, and "
+                       "the lifted position-loop model costs one matrix product per velocity period",
+                       "position_period", self.position_period, tv=self.velocity_period, limit=MAX_PERIOD_RATIO)
+        if self.velocity_loop == "discrete":    # sampled filters (Tustin) exist below the Nyquist frequency only
+            filters = [("velocity_filter", self.velocity_filter)] if self.velocity_filter is not None else []
+            for key, spec in filters + [(f"current_filters.{i}", f) for i, f in enumerate(self.current_filters)]:
+                if spec.frequency >= 0.5 / self.velocity_period:
+                    raise fail("filter frequency {value} Hz is not below the Nyquist frequency {nyquist:g} Hz of "
+                               "the sampled velocity loop", f"{key}.frequency", spec.frequency,
+                               nyquist=0.5 / self.velocity_period)
         if self.position_loop == "continuous" and self.velocity_loop != "continuous":
             raise fail("a continuous position loop needs a continuous velocity loop (a sampled inner loop "
                        "inside an analog outer loop is not a cascade a drive builds); set velocity_loop = "

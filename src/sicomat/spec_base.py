@@ -19,9 +19,10 @@ Name = Annotated[str, Field(pattern=NAME_PATTERN)]
 
 
 class Spec(BaseModel):
-    """Base of every schema class: unknown keys are errors, instances are immutable."""
+    """Base of every schema class: unknown keys are errors, instances are immutable, every float is
+    finite (TOML has ``inf`` and ``nan`` literals)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def quantity(kind: str) -> BeforeValidator:
@@ -51,7 +52,8 @@ TorsionalDamping = Annotated[float, quantity("torsional_damping"), Field(ge=0)]
 Time = Annotated[float, quantity("time"), Field(gt=0)]
 NonNegativeTime = Annotated[float, quantity("time"), Field(ge=0)]
 Frequency = Annotated[float, quantity("frequency"), Field(gt=0)]
-Gain = Annotated[float, quantity("inverse_time"), Field(ge=0)]
+Gain = Annotated[float, quantity("inverse_time"), Field(gt=0)]
+"""A controller gain in 1/s: zero opens the loop it closes, so it must be > 0."""
 Current = Annotated[float, quantity("current"), Field(gt=0)]
 Voltage = Annotated[float, quantity("voltage"), Field(gt=0)]
 Resistance = Annotated[float, quantity("resistance"), Field(ge=0)]

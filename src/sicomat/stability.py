@@ -130,6 +130,9 @@ def position_closed_loop(an: "LoopAnalysis", Kp: float, Ti: float, Kv: float):
     d = ctrl.position_delay
     n_x = Ap.shape[0]
     size = n_x + d
+    from .budget import require_dense
+
+    require_dense(size, "the closed position loop", f"one state per sample of the position_delay of {d}")
     Acl = np.zeros((size, size))
     Bcl = np.zeros(size)
     Acl[:n_x, :n_x] = Ap

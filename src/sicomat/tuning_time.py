@@ -101,8 +101,20 @@ def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None
     else:
         A, B, C = an.velocity_closed_loop(Kp, Ti)
     # the position integrator does not act on the velocity: keep the output row of v_meas
-    n = int(round((duration or max(30 * Ti if Ti < 0.05 else 0.5, 0.1)) / T))
+    n = _samples(duration or max(30 * Ti if Ti < 0.05 else 0.5, 0.1), T)
     return _step(A, B[:, 0], C[1], T, n, T, tail=max(3, n // 50))
+
+
+def _samples(duration: float, period: float) -> int:
+    """Samples of a step response of ``duration``, refused beyond the memory limit (the response,
+    its times and the normalised copy: 3 arrays of 8-byte numbers)."""
+    from .budget import require_memory
+
+    n = round(duration / period)
+    require_memory(24.0 * n, "this step response", f"{n} samples of {period:g} s x 3 arrays x 8 bytes")
+    if n < 2:
+        raise AnalysisError(f"a step response of {duration:g} s is shorter than two samples of {period:g} s")
+    return int(n)
 
 
 def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: float | None = None) -> StepResponse:
@@ -116,8 +128,8 @@ def position_step(an: LoopAnalysis, Kp: float, Ti: float, Kv: float, duration: f
     A, B, C, Tp = position_closed_loop(an, Kp, Ti, Kv)
     if Tp is None:     # a continuous position loop: sampled exactly at the velocity period (a step is held)
         A, B = zoh_matrices(A, B[:, None], Tv)
-        return _step(A, B[:, 0], C, Tv, int(round(duration / Tv)), Tv)
-    return _step(A, B, C, Tp, int(round(duration / Tp)), Tv)
+        return _step(A, B[:, 0], C, Tv, _samples(duration, Tv), Tv)
+    return _step(A, B, C, Tp, _samples(duration, Tp), Tv)
 
 
 @dataclass(frozen=True)

@@ -10,9 +10,10 @@ from pathlib import Path
 from typing import Any, Iterator, List, Optional
 
 import typer
+import typer.core
 
-__all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "emit_json", "load", "EXIT_UNSTABLE",
-           "exit_for"]
+__all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "emit_json", "load", "number",
+           "OneLineErrors", "EXIT_UNSTABLE", "exit_for"]
 
 EXIT_UNSTABLE = 3
 """Exit status when the result is meaningless: the loop is unstable or its simulation diverged (the
@@ -26,6 +27,76 @@ JsonOption = typer.Option(False, "--json", help="Print one JSON object on stdout
 AxisOption = typer.Option(None, "--axis", help="Axis name (default: the first axis of the model).")
 PlotOption = typer.Option(None, "--plot", help="Write a figure to this file (.png, .svg or .pdf).",
                           dir_okay=False)
+
+
+def number(*, gt: float | None = None, ge: float | None = None, lt: float | None = None,
+           le: float | None = None, nonzero: bool = False, unit: str = ""):
+    """A Typer ``callback`` for a numeric option: the value must be finite and within its sense.
+
+    Used in the option's declaration (``typer.Option(None, "--move", callback=number(nonzero=True))``)
+    so that every float option of every command is checked the same way, before any work: a bad
+    value is one line naming the option, its value and what was expected, and exit status 2.
+
+    Examples
+    --------
+    >>> check = number(gt=0, unit="dB")
+    >>> check.bounds
+    '> 0 dB'
+    """
+    words = [f"{op} {bound:g}" for op, bound in ((">", gt), (">=", ge), ("<", lt), ("<=", le)) if bound is not None]
+    bounds = " and ".join(words) + (f" {unit}" if unit and words else "")
+
+    def check(ctx: typer.Context, param: typer.CallbackParam, value: Any) -> Any:
+        if value is None or ctx.resilient_parsing:
+            return value
+        option = param.opts[0] if param.opts else str(param.name)
+        if not math.isfinite(value):
+            problem = "expected a finite number" + (f" {bounds}" if bounds else "")
+        elif value != 0 and not 1e-100 <= abs(value) <= 1e100:   # as sicomat.units.MAGNITUDES
+            problem = "expected a magnitude from 1e-100 to 1e100 (products of three values must stay finite)"
+        elif (gt is not None and not value > gt) or (ge is not None and not value >= ge) or \
+                (lt is not None and not value < lt) or (le is not None and not value <= le):
+            problem = f"expected a value {bounds}"
+        elif nonzero and value == 0:
+            problem = "expected a non-zero value"
+        else:
+            return value
+        from ..errors import ModelError
+
+        _fail(str(ModelError(problem, source=option, value=value)))
+
+    check.bounds = bounds  # type: ignore[attr-defined]
+    return check
+
+
+class OneLineErrors(typer.core.TyperGroup):
+    """The program's command group: a usage error (unknown option, a value that is not a number, a
+    missing argument) is one line on stderr and exit status 2, like every other bad input, instead of
+    click's usage block."""
+
+    def invoke(self, ctx: Any) -> Any:          # a command's options and arguments
+        with _one_line_usage_errors(lambda: ctx.command_path):
+            return super().invoke(ctx)
+
+    def make_context(self, info_name: Any, args: Any, parent: Any = None, **extra: Any) -> Any:
+        with _one_line_usage_errors(lambda: str(info_name)):   # the program's own options
+            return super().make_context(info_name, args, parent=parent, **extra)
+
+
+@contextmanager
+def _one_line_usage_errors(command_path) -> Iterator[None]:
+    try:   # recent Typer carries its own copy of click
+        from typer._click import exceptions as click  # type: ignore[import-not-found]
+    except ImportError:  # pragma: no cover
+        from click import exceptions as click
+
+    try:
+        yield
+    except click.NoArgsIsHelpError:
+        raise
+    except click.UsageError as exc:
+        where = exc.ctx.command_path if exc.ctx is not None else command_path()
+        _fail(" ".join(exc.format_message().split()) + f" (see '{where} --help')")
 
 
 @contextmanager
@@ -42,6 +113,11 @@ def guarded(source: Path | None = None) -> Iterator[None]:
         _fail(str(exc.with_source(str(source)) if exc.source is None and source is not None else exc))
     except SicomatError as exc:
         _fail(str(exc))
+    except OverflowError as exc:  # a finite input whose consequences overflow double precision
+        _fail(f"a value is too large to compute with in double precision ({exc})")
+    except MemoryError:  # past the estimates of sicomat.budget, e.g. with SICOMAT_MAX_MEMORY raised
+        _fail("out of memory: this machine cannot hold the work; lower SICOMAT_MAX_MEMORY (bytes, or e.g. "
+              "'8 GiB') below what it has so that SICOMAT refuses such work before starting it")
     except OSError as exc:  # e.g. writing a plot into a folder that does not exist
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         _fail(f"{where}{exc.strerror or exc}")

@@ -7,10 +7,11 @@ from typing import List, Optional
 
 import typer
 
-from ._common import AxisOption, JsonOption, PlotOption, SetOption, emit_json, exit_for, guarded, load
+from ._common import (AxisOption, JsonOption, OneLineErrors, PlotOption, SetOption, emit_json, exit_for, guarded,
+                      load, number)
 from .progress import progress_bar
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, cls=OneLineErrors,
                   help="SICOMAT: simulation and control analysis of machine-tool feed axes.")
 
 ModelArgument = typer.Argument(..., help="Model file (TOML).", dir_okay=False)
@@ -35,11 +36,11 @@ def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
           json_: bool = JsonOption) -> None:
     """Validate a model file and summarise its axes, dofs and couplings."""
     with guarded(model):
-        from ..mechanics import build_mechanics
+        from ..conditioning import check_axis_mechanics
         from .tables import check_payload, print_check
 
         machine = load(model, set_)
-        mechanics = {name: build_mechanics(axis.mechanics) for name, axis in machine.axes.items()}
+        mechanics = {name: check_axis_mechanics(name, axis.mechanics) for name, axis in machine.axes.items()}
         payload = check_payload(machine, mechanics)
         if json_:
             emit_json(payload)
@@ -53,15 +54,15 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
           plot: Optional[Path] = PlotOption) -> None:
     """Natural frequencies, damping ratios and mode shapes of an axis's mechanics."""
     with guarded(model):
-        from ..mechanics import build_mechanics
         from ..atomic import check_outputs
+        from ..conditioning import check_axis_mechanics
         from ..modal import modal_analysis
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         name = machine.axis_name(axis)
         with progress_bar() as progress:
-            result = modal_analysis(build_mechanics(machine.axes[name].mechanics), progress=progress)
+            result = modal_analysis(check_axis_mechanics(name, machine.axes[name].mechanics), progress=progress)
         if plot is not None:
             from ..plotting import save_figure
 
@@ -76,19 +77,24 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
 @app.command()
 def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
-             duration: Optional[float] = typer.Option(None, "--duration", help="Simulated time (s); "
+             duration: Optional[float] = typer.Option(None, "--duration", callback=number(gt=0, unit="s"),
+                                                      help="Simulated time (s); "
                                                       "default: the move plus a settling margin."),
-             step: Optional[float] = typer.Option(None, "--step", metavar="MM", help="Position step (mm)."),
-             move: Optional[float] = typer.Option(None, "--move", metavar="MM",
+             step: Optional[float] = typer.Option(None, "--step", metavar="MM", callback=number(nonzero=True),
+                                             help="Position step (mm)."),
+             move: Optional[float] = typer.Option(None, "--move", metavar="MM", callback=number(nonzero=True),
                                                   help="Trapezoidal move (mm) with the model's or default limits."),
              max_velocity: Optional[float] = typer.Option(None, "--max-velocity", metavar="M_S",
+                                                          callback=number(gt=0, unit="m/s"),
                                                           help="Velocity limit of --move (m/s)."),
              max_acceleration: Optional[float] = typer.Option(None, "--max-acceleration", metavar="M_S2",
+                                                              callback=number(gt=0, unit="m/s^2"),
                                                               help="Acceleration limit of --move (m/s^2)."),
              gcode: Optional[Path] = typer.Option(None, "--gcode", metavar="FILE", dir_okay=False,
                                                   help="Follow a G-code path (G00-G03, G17, G90/G91) with the "
                                                        "axes it moves."),
              feed: Optional[float] = typer.Option(None, "--feed", metavar="MM_PER_MIN",
+                                                  callback=number(gt=0, unit="mm/min"),
                                                   help="Override the G-code feed rate (mm/min)."),
              linear: bool = typer.Option(False, "--linear", help="Drop limits, quantizers and Coulomb friction."),
              magnification: Optional[float] = typer.Option(None, "--magnification",
@@ -244,12 +250,17 @@ def margins(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
          method: str = typer.Option("frequency", "--method", help="frequency (margins) or time (step responses)"),
          velocity_crossover: Optional[float] = typer.Option(None, "--velocity-crossover", metavar="RAD_S",
+                                                            callback=number(gt=0, unit="rad/s"),
                                                             help="Default: 2*pi*f_meca/4."),
-         velocity_phase_margin: float = typer.Option(45.0, "--velocity-phase-margin", metavar="DEG"),
+         velocity_phase_margin: float = typer.Option(45.0, "--velocity-phase-margin", metavar="DEG",
+                                                    callback=number(gt=0, lt=180, unit="deg")),
          position_phase_margin: Optional[float] = typer.Option(None, "--position-phase-margin", metavar="DEG",
+                                                               callback=number(gt=0, lt=180, unit="deg"),
                                                                help="Default 80 unless --position-crossover."),
-         position_crossover: Optional[float] = typer.Option(None, "--position-crossover", metavar="RAD_S"),
-         min_gain_margin: float = typer.Option(6.0, "--min-gain-margin", metavar="DB"),
+         position_crossover: Optional[float] = typer.Option(None, "--position-crossover", metavar="RAD_S",
+                                                            callback=number(gt=0, unit="rad/s")),
+         min_gain_margin: float = typer.Option(6.0, "--min-gain-margin", metavar="DB",
+                                                callback=number(gt=0, unit="dB")),
          apply_notch: bool = typer.Option(False, "--apply-notch",
                                           help="When a notch is suggested, write and report the tuning with it."),
          write: Optional[Path] = typer.Option(None, "--write", metavar="TUNED.toml", dir_okay=False,
@@ -314,13 +325,15 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
 @app.command()
 def circle(model: Path = ModelArgument,
-           radius: float = typer.Option(..., "--radius", metavar="MM", help="Circle radius (mm)."),
-           feed: float = typer.Option(..., "--feed", metavar="MM_PER_MIN", help="Feed rate (mm/min)."),
+           radius: float = typer.Option(..., "--radius", metavar="MM", callback=number(gt=0, unit="mm"),
+                                       help="Circle radius (mm)."),
+           feed: float = typer.Option(..., "--feed", metavar="MM_PER_MIN", callback=number(gt=0, unit="mm/min"),
+                                     help="Feed rate (mm/min)."),
            ccw: bool = typer.Option(False, "--ccw", help="Counter-clockwise (G03); default clockwise (G02)."),
            feedforward: Optional[str] = typer.Option(None, "--feedforward", metavar="on|off",
                                                      help="Override the model's velocity and acceleration "
                                                           "feedforward on every axis."),
-           magnification: Optional[float] = typer.Option(None, "--magnification",
+           magnification: Optional[float] = typer.Option(None, "--magnification", callback=number(gt=0),
                                                          help="Scale of the deviation in the polar plot."),
            set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
     """ISO 230-4 circle test (ballbar) on the X and Y axes: circular and radial deviation, reversal spikes,
@@ -418,12 +431,15 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 @app.command()
 def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
          loop: str = typer.Option("velocity", "--loop", help="velocity or position"),
-         kp: Optional[float] = typer.Option(None, "--Kp-normalized", "--Kp",
+         kp: Optional[float] = typer.Option(None, "--Kp-normalized", "--Kp", callback=number(gt=0, unit="1/s"),
                                             help="Velocity gain, normalised (1/s), as the model file's "
                                                  "Kp_normalized; default: the model's. (--Kp is the old name.)"),
-         ti: Optional[float] = typer.Option(None, "--Ti", help="Integral time (s); default: the model's."),
-         kv: Optional[float] = typer.Option(None, "--Kv", help="Position gain (1/s); default: the model's."),
-         duration: Optional[float] = typer.Option(None, "--duration", help="Length of the response (s)."),
+         ti: Optional[float] = typer.Option(None, "--Ti", callback=number(gt=0, unit="s"),
+                                           help="Integral time (s); default: the model's."),
+         kv: Optional[float] = typer.Option(None, "--Kv", callback=number(gt=0, unit="1/s"),
+                                           help="Position gain (1/s); default: the model's."),
+         duration: Optional[float] = typer.Option(None, "--duration", callback=number(gt=0, unit="s"),
+                                                   help="Length of the response (s)."),
          set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
     """One step response of the sampled velocity or position loop, with its overshoot and rise time:
     the manual, step-by-step form of the time approach (paper III.B.3)."""

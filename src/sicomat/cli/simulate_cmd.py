@@ -14,6 +14,7 @@ STEP_FIGURES = ("overshoot_percent", "rise_time", "settling_time")
 
 DEFAULT_MAX_VELOCITY = 0.2   # m/s, for --move without limits in the model
 DEFAULT_MAX_ACCELERATION = 2.0  # m/s^2
+MAX_GCODE_BYTES = 256 * 1024 ** 2  # a G-code program read whole: larger ones are refused
 
 
 def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration):
@@ -88,7 +89,9 @@ def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlin
     if feed_mm_min is not None and not feed_mm_min > 0:
         raise ModelError("the feed must be > 0 mm/min", source="--feed", value=feed_mm_min)
     try:
-        text = _Path(gcode_path).read_text(encoding="utf-8")
+        from ..modelfile import read_text_bounded
+
+        text = read_text_bounded(_Path(gcode_path), MAX_GCODE_BYTES, "a G-code file")
     except FileNotFoundError:
         raise ModelError("no such G-code file", source=str(gcode_path)) from None
     except (OSError, UnicodeDecodeError) as exc:

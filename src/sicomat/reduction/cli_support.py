@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
@@ -44,9 +45,13 @@ def parse_band(band: str | Sequence[float] | None) -> tuple[float, float] | None
         try:
             if len(parts) != 2:
                 raise ValueError
-            band = (float(parts[0]), float(parts[1]))
+            values = (float(parts[0]), float(parts[1]))
         except ValueError:
             raise ModelError("expected LOW_HZ:HIGH_HZ, e.g. 0:200", source="--band", value=band) from None
+        if any(math.isfinite(b) and b != 0 and not 1e-100 <= abs(b) <= 1e100 for b in values):
+            raise ModelError("expected frequencies of magnitude 1e-100 to 1e100 Hz (or 0), like every value",
+                             source="--band", value=band)
+        band = values
     try:
         return check_band(band)
     except ModelError as exc:
@@ -203,6 +208,9 @@ def reduce_command(machine: "Machine", axis: str | None, method: str, order: int
                          source="--keep", value=",".join(keep_list))
     name = machine.axis_name(axis)
     ax = machine.axes[name]
+    from ..conditioning import check_axis_mechanics
+
+    check_axis_mechanics(name, ax.mechanics)     # a reduction of unresolvable poles means nothing
     ins, outs = parse_signals(inputs, "--inputs"), parse_signals(outputs, "--outputs")
     notes: list[str] = []
     if ins is None or outs is None:

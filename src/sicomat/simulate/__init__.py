@@ -28,10 +28,13 @@ def loop_program(loop: "ServoLoop", profile: "Profile", duration: float, *, nonl
 
 
 def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
-                  nonlinear: bool = True) -> tuple[list, int]:
+                  nonlinear: bool = True, recorded: int | None = None) -> tuple[list, int]:
     """:func:`loop_program` for variants of one loop: the setpoints are sampled once for all.
 
     The loops must share their velocity and position periods (the setpoint table's timing).
+    ``recorded``: values kept per base step by the run that follows (default: every signal of one
+    loop, as :func:`simulate` keeps them), for the memory estimate made before anything is
+    allocated (:func:`sicomat.budget.require_memory`).
     """
     from ..loop import SetpointTable, servo_program
 
@@ -45,6 +48,12 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: fl
             raise ModelError(f"variant {v}: the loop periods differ from variant 0's "
                              f"({loop.base_period:g} s / {loop.position_ratio} against {h:g} s / {Np})",
                              path=f"axes.{loop.axis}.controller")
+    try:
+        duration = float(duration)
+    except (TypeError, ValueError):
+        duration = math.nan
+    if not (math.isfinite(duration) and duration > 0):
+        raise ModelError("the duration must be a finite number of seconds > 0", path="duration", value=duration)
     n_steps = int(math.floor(duration / h + 1e-9))
     if n_steps < 2:
         raise ModelError(f"the duration {duration:g} s is shorter than two velocity-loop periods ({h:g} s)",
@@ -57,9 +66,34 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: fl
             if delay >= duration:
                 raise ModelError(f"the delay ({delay:g} s) is not shorter than the run ({duration:g} s)",
                                  path=f"axes.{loop.axis}.controller.{key}", value=getattr(ctrl, key))
-    t_pos = np.arange(-(-n_steps // Np)) * Np * h
+    n_pos = -(-n_steps // Np)
+    per_step = recorded if recorded is not None else _values_per_step(first, profile, nonlinear)
+    delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in loops)
+    _require_memory(n_steps, per_step, n_pos, delayed)
+    t_pos = np.arange(n_pos) * Np * h
     table = SetpointTable(*profile.evaluate(t_pos))
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
+
+
+def _values_per_step(loop: "ServoLoop", profile: "Profile", nonlinear: bool) -> int:
+    """Values one run of ``loop`` keeps per base step: the recorded slots, the continuous states and
+    each friction link's force and stuck flag (the program of a one-sample table tells them)."""
+    from ..loop import SetpointTable, servo_program
+
+    program = servo_program(loop, SetpointTable(*profile.evaluate(np.zeros(1))), nonlinear=nonlinear)
+    return len(program.record) + program.continuous.A.shape[0] + 2 * program.continuous.G.shape[0]
+
+
+def _require_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -> None:
+    """Refuse a run whose arrays cannot fit: the kernel's records (``per_step`` values of 8 bytes per
+    step), as much again for the named and derived signals and the metrics computed from them, the
+    setpoint table (time, position, velocity, acceleration and the kernel's 3 columns) and the ring
+    buffers of the computation delays (``delayed`` samples)."""
+    from ..budget import require_memory
+
+    nbytes = 8.0 * (2.0 * n_steps * per_step + 7.0 * n_pos + delayed)
+    require_memory(nbytes, "this simulation", f"{n_steps} steps x {per_step} values x 8 bytes, twice, "
+                                              f"and the setpoint table")
 
 
 def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True,
@@ -91,6 +125,8 @@ def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinea
     ------
     SimulationDiverged
         The loop is unstable: the message gives the time at which the states blew up.
+    ResourceError
+        The run's arrays would exceed the memory limit (:mod:`sicomat.budget`); estimated first.
     """
     from .kernel import run
 
@@ -175,7 +211,8 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: f
     """
     from .kernel import run_batch
 
-    programs, n_steps = loop_programs(loops, profile, duration, nonlinear=nonlinear)
+    # the kernel's record and the following error computed from it: 2 values per variant and step
+    programs, n_steps = loop_programs(loops, profile, duration, nonlinear=nonlinear, recorded=2 * len(loops))
     sensors = [f"sensor.{loop.controller.position_sensor}" for loop in loops]
     if len(set(sensors)) != 1:
         raise ModelError("the variants of a batch must share their position sensor", path="controller.position_sensor")
