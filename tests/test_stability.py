@@ -189,7 +189,7 @@ def test_final_error_threshold_is_two_percent_of_the_move_or_ten_counts():
     n = 100
     setpoint = np.full(n, 0.01)
     setpoint[0] = 0.0
-    inside = np.zeros(n)
+    inside = np.zeros(n)                # 1 % either side of the threshold: 1e13 times its rounding
     inside[-1] = 0.99 * FINAL_ERROR_BAND * 0.01
     outside = inside.copy()
     outside[-1] = 1.01 * FINAL_ERROR_BAND * 0.01
