@@ -52,7 +52,7 @@ def test_second_order_closed_loop_bandwidth_closed_form(zeta):
     s = 1j * GRID
     T = wn**2 / (s**2 + 2 * zeta * wn * s + wn**2)
     expected = wn * np.sqrt(1 - 2 * zeta**2 + np.sqrt(4 * zeta**4 - 4 * zeta**2 + 2))
-    assert closed_loop_bandwidth(T_of(GRID, T), 1.0) == pytest.approx(expected, rel=RTOL_GRID)
+    assert closed_loop_bandwidth(T_of(GRID, T), 1.0) == pytest.approx(expected, rel=RTOL_GRID)  # cubic bound, top
 
 
 def test_type_zero_loop_is_relative_to_its_static_gain():
@@ -100,7 +100,9 @@ def test_static_gain_of_a_pi_velocity_loop_with_a_drifting_position():
     C = np.array([[0, 1, 0], [1, 0, 0]])
     assert np.linalg.matrix_rank(A) == 2
     G = static_gain(A, B, C, discrete=False)
-    assert G[0, 0] == pytest.approx(1.0, abs=1e-13) and G[1, 0] == np.inf
+    # the solve of the regular part (v, ξ): κ = 1e3, n = 3, n·κ·eps = 7e-13 (1e-11); sampled, the same κ
+    # plus expm's error (n·eps·κ(V)·‖A h‖, ‖A h‖ = 0.5): 1e-10
+    assert G[0, 0] == pytest.approx(1.0, abs=1e-11) and G[1, 0] == np.inf
     # the same loop sampled (ZOH at 1 ms): z = 1, same values
     Ad, Bd = zoh_matrices(A, B, 1e-3)
     Gd = static_gain(Ad, Bd, C, discrete=True)
@@ -140,7 +142,7 @@ def test_loop_static_gains_are_one_with_integrators(sets):
     an = LoopAnalysis.of(loop)
     assert an.closed_loop_static_gain("velocity-open") == pytest.approx(1.0, abs=1e-10)
     assert an.closed_loop_static_gain("position-open") == pytest.approx(1.0, abs=1e-10)
-    assert an.response("position-open").info["closed_loop_static_gain"] == pytest.approx(1.0, abs=1e-10)
+    assert an.response("position-open").info["closed_loop_static_gain"] == pytest.approx(1.0, abs=1e-10)  # n·κ·eps
 
 
 def test_analog_and_continuous_position_loop_static_gains():
@@ -149,7 +151,7 @@ def test_analog_and_continuous_position_loop_static_gains():
         loop = build_servo_loop(sicomat.load_model(EXAMPLES / "ballscrew_analog.toml", sets))
         an = LoopAnalysis.of(loop)
         assert an.closed_loop_static_gain("velocity-open") == pytest.approx(1.0, abs=1e-10)
-        assert an.closed_loop_static_gain("position-open") == pytest.approx(1.0, abs=1e-10)
+        assert an.closed_loop_static_gain("position-open") == pytest.approx(1.0, abs=1e-10)   # n·κ·eps above
 
 
 # --------------------------------------------------------------------------- 5M4S against oracles
@@ -180,7 +182,7 @@ def test_paper_5m4s_position_bandwidth_against_python_control_and_a_root_finder(
     mag = np.abs(np.asarray(closed.frequency_response(w).complex).ravel())
     i = int(np.flatnonzero(mag < static_pc / np.sqrt(2))[0])
     oracle = _pointwise_bandwidth(an, "position-open", static_pc, (w[i - 1], w[i]))
-    assert oracle == pytest.approx(28.33, abs=0.005)   # the figure
+    assert oracle == pytest.approx(28.33, abs=0.005)   # the figure, quoted to 2 decimals: ±0.005
     m = stability_margins(an.response("position-open"))
     # the grid of default_omega (2000 log points from π to 3138 rad/s: h = 3.5e-3 in ln ω, h⁴ =
     # 1.5e-10) and the same cubic bound as above: ≤ 1e-7 relative; the old definition (the lowest
@@ -216,4 +218,5 @@ def test_tune_and_margins_report_the_same_bandwidths(tmp_path):
     margins = json.loads(out.output)
     for loop in ("velocity", "position"):
         assert margins[loop]["static_gain_exact"] is True
+        # two interpolation bounds (comment above): (2000/1200)⁴·1e-7 = 7.7e-7 on tune's grid + 1e-7 < 1e-6
         assert achieved[f"{loop}_bandwidth_rad_s"] == pytest.approx(margins[loop]["bandwidth_rad_s"], rel=1e-6)

@@ -55,8 +55,8 @@ def test_equal_gains_give_the_first_order_radius_error_and_no_mismatch(clockwise
     assert_allclose([res.radial_deviation_min, res.radial_deviation_max], expected, rtol=0.01)
     assert res.clockwise is clockwise
     assert res.servo_mismatch < 1e-3 * abs(expected)
-    assert res.circular_deviation < 1e-3 * abs(expected)
-    assert all(abs(s.height) < 1e-3 * abs(expected) for s in res.reversal_spikes)
+    assert res.circular_deviation < 1e-3 * abs(expected)                     # the same sampled-extremes bound
+    assert all(abs(s.height) < 1e-3 * abs(expected) for s in res.reversal_spikes)   # and again
 
 
 @pytest.mark.parametrize("clockwise", [False, True])

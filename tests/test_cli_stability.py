@@ -62,6 +62,7 @@ def test_simulate_bang_bang_limit_cycle_is_unstable_exit_3():
 def test_simulate_far_final_error_is_said():
     payload = run_json("simulate", P5M4S, "--move", "10", "--set", "axes.X.controller.Kv=5000", exit_code=3)
     assert any("off its target" in w for w in payload["warnings"])
+    # the warning's own threshold: FINAL_ERROR_BAND (2 %) of the 10 mm move; the run ends 7 mm off
     assert abs(payload["final_error"]) > 0.02 * 0.01
 
 
@@ -122,6 +123,9 @@ def test_tune_time_targets_met_only_with_the_margins_it_claims():
     GM 4.7 dB, so it is not."""
     payload = run_json("tune", P5M4S, "--method", "time", exit_code=0)
     margins = _margins_of(P5M4S, payload["velocity"], payload["position"])
+    # `margins` measures again on its own grid: crossovers interpolated to ~1e-6 dB and deg (test_margins'
+    # local-cubic bounds), so 0.1 dB / 0.1° absorbs the two grids' difference; the time tuning's GM is
+    # 4.7 dB, 1.3 dB below the floor, so the verdict cannot hinge on the slack
     holds = all(margins[loop]["gain_margin_db"] >= 6.0 - 0.1 and margins[loop]["phase_margin_deg"] >= 30.0 - 0.1
                 for loop in ("velocity", "position"))
     assert payload["achieved"]["targets_met"] is holds
@@ -134,6 +138,8 @@ def test_tune_targets_met_only_if_the_worst_phase_margin_holds():
     payload = run_json("tune", P5M4S, "--velocity-crossover", "125.6", "--velocity-phase-margin", "45",
                        "--position-phase-margin", "80", exit_code=0)
     margins = _margins_of(P5M4S, payload["velocity"], payload["position"])
+    # TuningTargets' window (1°) on the phase margins and the re-measurement's grid difference (0.05 dB,
+    # see above) on the GM; the worst velocity phase margin is 30.3°, 14° below the window
     worst_ok = (margins["velocity"]["phase_margin_deg"] >= 45.0 - 1.0
                 and margins["position"]["phase_margin_deg"] >= 80.0 - 1.0
                 and min(margins["velocity"]["gain_margin_db"], margins["position"]["gain_margin_db"]) >= 6.0 - 0.05)

@@ -69,7 +69,7 @@ def test_known_offsets_and_signs():
         arc = Path([Arc((r, 0.0), (0.0, r) if not clockwise else (0.0, -r), (0.0, 0.0), clockwise)])
         th = math.radians(30) * (-1 if clockwise else 1)
         pts = np.array([[(r + d) * math.cos(th), (r + d) * math.sin(th)] for d in (1e-4, -2e-4)])
-        assert_allclose(contour_error(arc, pts), [1e-4, 2e-4], rtol=1e-9)
+        assert_allclose(contour_error(arc, pts), [1e-4, 2e-4], rtol=1e-9)    # |r − R|: eps·R/d, above
         assert_allclose(contour_error(arc, pts, signed=True), outward_sign * np.array([1e-4, -2e-4]), rtol=1e-9)
     # beyond the arc's end points the nearest point is an end point; the centre is R away
     quarter = Path([Arc((r, 0.0), (0.0, r), (0.0, 0.0))])

@@ -56,7 +56,7 @@ def test_third_order_loop(K):
     assert_allclose(m.gain_margin_db, 20 * np.log10(6.0 / K), rtol=1e-9, atol=1e-9)
     assert_allclose(m.gain_crossover_rad_s, w_gc, rtol=1e-9)
     assert_allclose(m.phase_margin_deg, pm, rtol=1e-9, atol=1e-8)
-    assert_allclose(m.delay_margin_s, np.radians(pm % 360.0) / w_gc, rtol=1e-8)
+    assert_allclose(m.delay_margin_s, np.radians(pm % 360.0) / w_gc, rtol=1e-8)     # divides by a crossover
     assert m.gain_crossovers.size == 1 and m.phase_crossovers.size == 1
     assert m.stable_hint is (K < 6.0)            # Routh: s³ + 3s² + 2s + K stable for K < 6
     assert np.isnan(m.delay_margin_samples)
@@ -77,7 +77,7 @@ def test_integrator_with_pure_delay(wc, tau):
     assert_allclose(m.phase_margin_deg, 90.0 - np.degrees(wc * tau), rtol=1e-9)
     assert_allclose(m.delay_margin_s, np.pi / (2 * wc) - tau, rtol=1e-8)
     assert_allclose(m.gain_margin_db, 20 * np.log10(np.pi / (2 * wc * tau)), rtol=1e-8)
-    assert_allclose(m.phase_crossover_rad_s, np.pi / (2 * tau), rtol=1e-9)
+    assert_allclose(m.phase_crossover_rad_s, np.pi / (2 * tau), rtol=1e-9)   # the local-cubic bound above
     k = np.arange(0, 1000)
     w_k = (np.pi / 2 + 2 * np.pi * k) / tau
     w_k = w_k[w_k < omega[-1]]
@@ -208,7 +208,7 @@ def test_lightly_damped_resonance_three_crossovers():
     assert_allclose(m.phase_margin_deg, 40.0, atol=1e-5)
     assert_allclose(m.gain_crossover_rad_s, w_all[2], rtol=1e-8)
     dm = np.radians(np.mod(pm, 360.0)) / w_all
-    assert_allclose(m.delay_margins_s, dm, rtol=1e-6)
+    assert_allclose(m.delay_margins_s, dm, rtol=1e-6)        # divide by crossovers (above): 1e-6
     assert_allclose(m.delay_margin_s, dm.min(), rtol=1e-6)
     # every phase crossover found is one (closed-form phase ≡ −180°) and its GM is −20 log10|L| there
     L_pc = resonant_loop(m.phase_crossovers, wc, wn, zeta, tau)
@@ -255,7 +255,7 @@ def test_against_python_control(name):
     assert_allclose(m.modulus_margin, sm, rtol=1e-3)
     assert_allclose(m.modulus_margin_rad_s, wms, rtol=1e-3)
     if np.isfinite(wpc):
-        assert_allclose(m.phase_crossover_rad_s, wpc, rtol=1e-3)
+        assert_allclose(m.phase_crossover_rad_s, wpc, rtol=1e-3)     # the oracle's minimiser bound, above
     else:
         assert np.isnan(m.phase_crossover_rad_s)
     assert_allclose(m.gain_crossover_rad_s, wgc, rtol=1e-3)
@@ -314,10 +314,10 @@ def test_discrete_integrator(K):
     assert_allclose(m.phase_margin_deg, 90.0 - np.degrees(a), rtol=1e-9)
     assert_allclose(m.delay_margin_samples, (np.pi / 2 - a) / (2 * a), rtol=1e-8)
     assert_allclose(m.delay_margin_s, T * (np.pi / 2 - a) / (2 * a), rtol=1e-8)
-    assert_allclose(m.phase_crossover_rad_s, np.pi / T, rtol=1e-12)
-    assert_allclose(m.gain_margin_db, 20 * np.log10(2 / K), rtol=1e-6)
-    assert_allclose(m.modulus_margin, 1 - K / 2, rtol=1e-6)
-    assert_allclose(m.modulus_margin_rad_s, np.pi / T, rtol=1e-12)
+    assert_allclose(m.phase_crossover_rad_s, np.pi / T, rtol=1e-12)    # π/T by construction: rounding
+    assert_allclose(m.gain_margin_db, 20 * np.log10(2 / K), rtol=1e-6)  # extrapolated from 0.999π/T: 1e-6
+    assert_allclose(m.modulus_margin, 1 - K / 2, rtol=1e-6)             # the same extrapolation
+    assert_allclose(m.modulus_margin_rad_s, np.pi / T, rtol=1e-12)      # π/T by construction
     a_ = 1.0 - K
     c = (4 * a_ * np.cos(omega[0] * T) - 1 - a_**2) / (2 * a_) if K != 1 else np.inf
     if abs(c) <= 1:

@@ -301,6 +301,7 @@ def test_servo_values_outside_their_sense_are_refused(tmp_path, old, new, key_pa
 def test_drive_bandwidth_in_rad_per_s_is_converted_to_hz(tmp_path):
     path = tmp_path / "servo.toml"
     path.write_text(RIGID.replace('bandwidth = "1000 Hz"', 'bandwidth = "6283.185307179586 rad/s"'))
+    # 2π·1000 written to 16 digits, divided by 2π: two roundings and the decimal's 1e-16: a few eps (1e-12)
     assert_allclose(load_model(path).axes["X"].drive.bandwidth, 1000.0, rtol=1e-12)
 
 

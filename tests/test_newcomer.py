@@ -80,9 +80,12 @@ def test_tuned_gains_pasted_into_a_model_file_give_the_tuned_loop(tmp_path, meth
     reference = json.loads(run("margins", str(tuned), "--json").stdout)
     got = json.loads(run("margins", pasted, "--json").stdout)
     for loop in ("velocity", "position"):
+        # the two files' loops differ by one rounding of Kp: the margins by κ·eps of the response (κ <= 1e6
+        # on these grids, ~1e-8 deg), far below 1e-6 deg (comment above)
         assert got[loop]["phase_margin_deg"] == pytest.approx(reference[loop]["phase_margin_deg"], abs=1e-6)
     from sicomat import load_model
 
+    # --write keeps 15 significant digits (5e-15 relative) and the unit factor rounds once: 1e-12
     assert load_model(tuned).axes["X"].controller.Kp_normalized == pytest.approx(v["Kp_normalized"], rel=1e-12)
 
 
@@ -92,7 +95,8 @@ def test_step_json_names_gains_as_the_model_file():
 
     loop = build_servo_loop(load_model(P5M4S))
     payload = json.loads(run("step", P5M4S, "--Kp-normalized", "120", "--json").stdout)
-    assert payload["Kp_normalized"] == pytest.approx(120.0)
+    # the option echoed (no arithmetic) and Kp = Kp_n·m (one rounding): 1e-12 for both
+    assert payload["Kp_normalized"] == pytest.approx(120.0, rel=1e-12)
     assert payload["Kp"] == pytest.approx(120.0 * loop.m_rigid, rel=1e-12)  # physical, as the file's Kp
     old_name = json.loads(run("step", P5M4S, "--Kp", "120", "--json").stdout)
     assert old_name["Kp_normalized"] == payload["Kp_normalized"]
@@ -154,11 +158,13 @@ def test_json_units_follow_one_rule(json_outputs):
 
 def test_json_echoes_options_in_their_own_units(json_outputs):
     circle = json_outputs["circle"]
-    assert circle["feed_mm_min"] == pytest.approx(600.0, rel=1e-12) and circle["feed"] == pytest.approx(0.01)
-    assert circle["radius_mm"] == pytest.approx(5.0, rel=1e-12) and circle["radius"] == pytest.approx(5e-3)
+    # unit conversions mm/min -> m/s and mm -> m and back: a few roundings of a decimal factor (1e-12)
+    assert circle["feed_mm_min"] == pytest.approx(600.0, rel=1e-12) and circle["feed"] == pytest.approx(0.01, rel=1e-12)
+    assert circle["radius_mm"] == pytest.approx(5.0, rel=1e-12) and circle["radius"] == pytest.approx(5e-3, rel=1e-12)
     drive = json_outputs["check"]["axes"]["X"]["drive"]
     assert drive["bandwidth_hz"] == drive["bandwidth"] == 1000.0  # the model file's "1000 Hz"
     simulate = json_outputs["simulate"]
+    # duration = samples × step, one rounding (half an ulp), and JSON floats round-trip exactly: 1e-12 is ample
     assert simulate["duration"] == pytest.approx(simulate["samples"] * simulate["time_step"], rel=1e-12)
 
 
@@ -402,9 +408,11 @@ def test_circle_plot_magnification_is_automatic_round_and_shown():
     actual = next(line for line in ax.get_lines() if line.get_label().startswith("actual"))
     factor = float(actual.get_label().split("×")[1].rstrip(")"))
     mantissa = factor / 10 ** np.floor(np.log10(factor))
-    assert min(abs(mantissa - m) for m in (1, 2, 5)) < 1e-9  # a 1-2-5 factor, as printed
+    # a 1-2-5 factor, as printed: the division by a power of ten rounds once (a few eps; 1e-9)
+    assert min(abs(mantissa - m) for m in (1, 2, 5)) < 1e-9
     assert f"×{factor:g}" in ax.get_title()
     drawn = np.max(np.abs(np.asarray(actual.get_ydata()) - 1.0))  # nominal circle at 1: fraction of R
+    # the rule's window (8-20 % of R), plus the rounding of fractions of R near 1 drawn (a few eps; 1e-12)
     assert 0.08 - 1e-12 <= drawn <= 0.2 + 1e-12, drawn
     assert "×7)" in next(line.get_label() for line in test.plot(7.0).axes[0].get_lines()
                          if line.get_label().startswith("actual"))

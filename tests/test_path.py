@@ -31,9 +31,9 @@ def test_length_point_and_tangent_of_line_plus_arc():
     s = np.array([0.0, 0.05, 0.1, 0.1 + math.pi * R / 4, p.length])
     c45 = math.sqrt(0.5)
     assert_allclose(p.point(s), [[0, 0], [0.05, 0], [0.1, 0], [0.1 + R * c45, R - R * c45], [0.15, 0.05]],
-                    atol=1e-15)
-    assert_allclose(p.tangent(s), [[1, 0], [1, 0], [1, 0], [c45, c45], [0, 1]], atol=1e-15)
-    assert_allclose(p.curvature(s)[-1], [-1 / R, 0.0], atol=1e-12)
+                    atol=1e-15)                                         # a few ulp of 0.3 m, above
+    assert_allclose(p.tangent(s), [[1, 0], [1, 0], [1, 0], [c45, c45], [0, 1]], atol=1e-15)   # cos/sin: an ulp of 1
+    assert_allclose(p.curvature(s)[-1], [-1 / R, 0.0], atol=1e-12)   # a few eps of 20 (above)
     assert p.point(0.05).shape == (2,)
     assert p.axis_names == ("x", "y")
 
@@ -46,6 +46,7 @@ def test_arc_direction(clockwise, sweep):
     assert_allclose(arc.length, abs(sweep) * R, rtol=1e-15)
     mid = arc.point(np.array([arc.length / 2]))[0]
     expected = math.pi / 4 if not clockwise else -3 * math.pi / 4
+    # R·cos/sin of a sweep/2 known to an ulp: a few ulp of R = 0.05 (7e-18 each), atol 1e-15
     assert_allclose(mid, [R * math.cos(expected), R * math.sin(expected)], atol=1e-15)
 
 

@@ -180,7 +180,7 @@ def test_limits_never_exceeded_and_continuity(d, sign, v, a, j):
     assert np.max(np.abs(vel)) <= v * (1 + tol)
     assert np.max(np.abs(acc)) <= a * (1 + tol)
     assert np.max(np.abs(jerk)) <= j * (1 + tol)
-    assert_allclose(prof.end_time, closed_form_time(d, v, a, j)[0], rtol=1e-9)
+    assert_allclose(prof.end_time, closed_form_time(d, v, a, j)[0], rtol=1e-9)   # roots of extreme ratios, above
     assert_allclose(pos[-1], sign * d, rtol=1e-12)
     assert np.all(np.diff(sign * pos) >= -1e-15 * d)        # monotonic
     # continuity of position, velocity and acceleration across every break

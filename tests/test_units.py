@@ -57,6 +57,7 @@ def test_motor_constants_per_rpm_convert_through_their_radians():
 
 
 def test_frequency_in_hz_for_an_angular_frequency():
+    # pint's factor 2π and the product: a few roundings (1e-12, as in test_strings_with_units)
     assert_allclose(parse_quantity("10 Hz", ANGULAR_SPEED), 20 * math.pi, rtol=1e-12)
     assert_allclose(parse_quantity("2 kHz", ANGULAR_SPEED), 4000 * math.pi, rtol=1e-12)
 
@@ -112,7 +113,7 @@ def test_strings_with_units(text, kind, expected):
 
 
 def test_3000_rpm_is_100_pi_rad_per_s():
-    assert_allclose(parse_quantity("3000 rpm", ANGULAR_SPEED), 100 * math.pi, rtol=1e-12)
+    assert_allclose(parse_quantity("3000 rpm", ANGULAR_SPEED), 100 * math.pi, rtol=1e-12)   # 2π/60: a few roundings
 
 
 @pytest.mark.parametrize(("value", "kind", "fragment"), [
@@ -150,7 +151,7 @@ def test_dimensionless_unit_is_not_a_mass(text):
 
 
 def test_percent_as_plain_number_is_scaled():
-    assert_allclose(parse_quantity("50 %", UNITS["dimensionless"]), 0.5, rtol=1e-12)
+    assert_allclose(parse_quantity("50 %", UNITS["dimensionless"]), 0.5, rtol=1e-12)   # one factor 0.01: rounding
 
 
 # ------------------------------------------------------------------ cached "<number> <unit>" path
