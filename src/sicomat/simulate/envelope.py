@@ -106,7 +106,13 @@ def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tu
     Whatever cannot be separated safely stays in one general block (componentwise bounds)."""
     n = A.shape[0]
     slow = lambda re, im: bool(math.hypot(re, im) * h <= SLOW)  # noqa: E731
-    T, Z, k = scipy.linalg.schur(A, output="real", sort=slow)
+    if n == 0 or not np.isfinite(A).all():
+        return _reference_arrays(A, h)
+    # LAPACK's dgees and dgeev as scipy.linalg.schur and numpy's eig call them, without their
+    # wrappers' overhead (a few µs each, paid per configuration and batch variant)
+    T, k, _, _, Z, _, info = _dgees(slow, A, sort_t=1, overwrite_a=0)
+    if info != 0:
+        return _reference_arrays(A, h)
     if k == n:
         return np.eye(n), np.eye(n), [(0, n, "slow")]
     X = np.zeros((k, n - k))
@@ -437,7 +443,13 @@ def _decompose_arrays(A: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
     falls back to :func:`_decompose` wherever the compiled path cannot decide (a singular basis)."""
     n = A.shape[0]
     slow = lambda re, im: bool(math.hypot(re, im) * h <= SLOW)  # noqa: E731
-    T, Z, k = scipy.linalg.schur(A, output="real", sort=slow)
+    if n == 0 or not np.isfinite(A).all():
+        return _reference_arrays(A, h)
+    # LAPACK's dgees and dgeev as scipy.linalg.schur and numpy's eig call them, without their
+    # wrappers' overhead (a few µs each, paid per configuration and batch variant)
+    T, k, _, _, Z, _, info = _dgees(slow, A, sort_t=1, overwrite_a=0)
+    if info != 0:
+        return _reference_arrays(A, h)
     if k == n:
         return (np.eye(n), np.eye(n), np.zeros(1, dtype=np.int64), np.array([n], dtype=np.int64),
                 np.zeros(1, dtype=np.int64))
@@ -448,14 +460,49 @@ def _decompose_arrays(A: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
             return (np.eye(n), np.eye(n), np.zeros(1, dtype=np.int64),
                     np.array([n], dtype=np.int64), np.zeros(1, dtype=np.int64))
         X = X / scale
-    lam, V = np.linalg.eig(T[k:, k:])
+    wr, wi, _, vr, info = _dgeev(T[k:, k:], compute_vl=0, compute_vr=1)
+    if info != 0:
+        return _reference_arrays(A, h)
     try:
         return _assemble(np.ascontiguousarray(Z), np.ascontiguousarray(X), k,
-                         lam.astype(np.complex128), V.astype(np.complex128))
+                         *_eigenpairs(wr, wi, vr))
     except Exception:  # noqa: BLE001 - a singular basis: the reference path decides
-        S, Y, blocks = _decompose(A, h)
-        return (S, Y) + tuple(np.array(col, dtype=np.int64) for col in zip(
-            *((st, sz, _KINDS[kind]) for st, sz, kind in blocks)))
+        return _reference_arrays(A, h)
+
+
+_dgees = scipy.linalg.lapack.dgees
+_dgeev = scipy.linalg.lapack.dgeev
+
+
+@njit(cache=True)
+def _eigenpairs(wr, wi, vr):
+    """Eigenvalues and right eigenvectors from dgeev's real output, as numpy's ``eig`` forms
+    them (a complex pair's vectors are ``vr[:, j] ± i vr[:, j+1]``)."""
+    m = wr.shape[0]
+    lam = np.empty(m, dtype=np.complex128)
+    V = np.empty((m, m), dtype=np.complex128)
+    j = 0
+    while j < m:
+        if wi[j] != 0.0 and j + 1 < m:
+            lam[j] = complex(wr[j], wi[j])
+            lam[j + 1] = complex(wr[j + 1], wi[j + 1])
+            for i in range(m):
+                V[i, j] = complex(vr[i, j], vr[i, j + 1])
+                V[i, j + 1] = complex(vr[i, j], -vr[i, j + 1])
+            j += 2
+        else:
+            lam[j] = complex(wr[j], wi[j])
+            for i in range(m):
+                V[i, j] = complex(vr[i, j], 0.0)
+            j += 1
+    return lam, V
+
+
+def _reference_arrays(A: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
+    """:func:`_decompose` (the reference path, with scipy's and numpy's checks) as arrays."""
+    S, Y, blocks = _decompose(A, h)
+    return (S, Y) + tuple(np.array(col, dtype=np.int64) for col in zip(
+        *((st, sz, _KINDS[kind]) for st, sz, kind in blocks)))
 
 
 @njit(cache=True)
