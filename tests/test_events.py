@@ -362,3 +362,44 @@ def test_the_envelope_tests_never_clear_a_crossing():
             # the same: 1e-12 of the terms' size (up to ~300 for M3 = 40, dt = 4.7)
             size = f0 + abs(f1) * dt + abs(f2) * dt ** 2 / 2 + M3 * dt ** 3 / 6
             assert (f0 + f1 * s + f2 * s ** 2 / 2 - M3 * s ** 3 / 6).min() >= -1e-12 * size
+
+
+# -------------------------------------------------- the compiled decomposition = the reference one
+
+def _decomposition_cases():
+    """Continuous parts of every kind the decomposition meets: the shaken mass (fast pair, slow
+    block), the 5M4S in both stick configurations (a slow block of six, two fast pairs, a real mode),
+    a matrix of slow eigenvalues only, and one with a cluster of fast eigenvalues (general
+    block)."""
+    h = 1e-3
+    prog, _ = _shaken_mass(h)
+    cases = [(constrained_dynamics(prog.continuous, c).A, h) for c in (0, 1)]
+    machine = sicomat.load_model("examples/paper_5m4s.toml")
+    prog5, _ = loop_program(build_servo_loop(machine), trapezoid_profile(0.001, 0.1, 1.0), 0.01)
+    cases += [(constrained_dynamics(prog5.continuous, c).A, prog5.step) for c in (0, 1)]
+    cases.append((np.array([[0.0, 1.0], [0.0, 0.0]]), h))                 # slow only
+    w = 2 * np.pi * 3000.0
+    rot = np.array([[-1.0, w], [-w, -1.0]])
+    cases.append((scipy.linalg.block_diag(rot, rot * (1 + 1e-6)), h))      # clustered pair
+    return cases
+
+
+@pytest.mark.parametrize("case", range(6))
+def test_compiled_decomposition_matches_the_reference(case):
+    # the compiled path (LAPACK called directly, the modal basis and S, Y assembled by numba)
+    # must give the reference path's blocks and, within rounding, its S and Y: both evaluate the
+    # same formulas on the same Schur and eigenvector factors, so they differ only in the
+    # summation order of products of size n and in the solve for Y, i.e. by at most
+    # ~n * eps * cond(S) relative to the norms (10x that is left for the Sylvester solve)
+    from sicomat.simulate.envelope import _KINDS, _decompose, _decompose_arrays
+
+    A, h = _decomposition_cases()[case]
+    S_ref, Y_ref, blocks = _decompose(A, h)
+    S, Y, bstart, bsize, bkind = _decompose_arrays(A, h)
+    assert [(int(a), int(b), int(c)) for a, b, c in zip(bstart, bsize, bkind)] == \
+        [(st, sz, _KINDS[kind]) for st, sz, kind in blocks]
+    n = A.shape[0]
+    cond = np.abs(S_ref).sum(axis=0).max() * np.abs(Y_ref).sum(axis=0).max()
+    tol = 10 * n * np.finfo(float).eps * cond
+    assert np.abs(S - S_ref).max() <= tol * np.abs(S_ref).max()
+    assert np.abs(Y - Y_ref).max() <= tol * np.abs(Y_ref).max()

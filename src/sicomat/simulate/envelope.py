@@ -106,7 +106,13 @@ def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tu
     Whatever cannot be separated safely stays in one general block (componentwise bounds)."""
     n = A.shape[0]
     slow = lambda re, im: bool(math.hypot(re, im) * h <= SLOW)  # noqa: E731
-    T, Z, k = scipy.linalg.schur(A, output="real", sort=slow)
+    if n == 0 or not np.isfinite(A).all():
+        return _reference_arrays(A, h)
+    # LAPACK's dgees and dgeev as scipy.linalg.schur and numpy's eig call them, without their
+    # wrappers' overhead (a few µs each, paid per configuration and batch variant)
+    T, k, _, _, Z, _, info = _dgees(slow, A, sort_t=1, overwrite_a=0)
+    if info != 0:
+        return _reference_arrays(A, h)
     if k == n:
         return np.eye(n), np.eye(n), [(0, n, "slow")]
     X = np.zeros((k, n - k))
@@ -342,6 +348,196 @@ def _growth(Y, S, A, Bu, bstart, bsize, bkind, h):
     return out, kd
 
 
+@njit(cache=True)
+def _assemble(Z, X, k, lam, V):
+    """:func:`_decompose` after the Schur form ``Z`` (its first ``k`` columns the slow invariant
+    subspace), the Sylvester solution ``X`` and the eigenpairs ``lam, V`` of the fast diagonal
+    block, compiled (the setup runs once per configuration and batch variant): the fast block's
+    real modal basis ``Q`` (:func:`_fast_blocks`), ``S``, ``Y`` and the blocks as arrays
+    ``(start, size, kind)``, with the same fall-backs."""
+    n = Z.shape[0]
+    m = n - k
+    lam_abs = np.abs(lam)
+    fast_ok = True
+    for i in range(m):                    # clusters (a pair's two members belong together)
+        dmin = np.inf
+        for j in range(m):
+            if j == i:
+                continue
+            if lam[i].imag != 0 and abs(lam[i] - np.conj(lam[j])) <= 1e-12 * lam_abs[i]:
+                continue
+            dmin = min(dmin, abs(lam[i] - lam[j]))
+        if dmin <= _CLUSTER * lam_abs[i]:
+            fast_ok = False
+    Q = np.zeros((m, m))
+    fstart = np.zeros(m, dtype=np.int64)
+    fsize = np.zeros(m, dtype=np.int64)
+    nb = 0
+    ncol = 0
+    if fast_ok:
+        for i in range(m):
+            if lam[i].imag > 0:
+                if ncol + 2 > m:
+                    fast_ok = False
+                    break
+                a = np.ascontiguousarray(V[:, i].real)
+                b = np.ascontiguousarray(V[:, i].imag)
+                phi = 0.5 * math.atan2(2 * (a @ b), (a @ a) - (b @ b))
+                v = V[:, i] * np.exp(-1j * phi)
+                c0 = np.ascontiguousarray(v.real)
+                scale = np.linalg.norm(c0)
+                Q[:, ncol] = c0 / scale
+                Q[:, ncol + 1] = v.imag / scale
+                fstart[nb], fsize[nb] = ncol, 2
+                nb += 1
+                ncol += 2
+            elif lam[i].imag == 0:
+                if ncol + 1 > m:
+                    fast_ok = False
+                    break
+                c0 = np.ascontiguousarray(V[:, i].real)
+                Q[:, ncol] = c0 / np.linalg.norm(c0)
+                fstart[nb], fsize[nb] = ncol, 1
+                nb += 1
+                ncol += 1
+        if ncol != m:
+            fast_ok = False
+    if fast_ok:
+        Qinv = np.linalg.inv(Q)
+        cq = np.abs(Q).sum(axis=0).max() * np.abs(Qinv).sum(axis=0).max()
+        if cq > _COND_MAX:
+            fast_ok = False
+    if not fast_ok:
+        Q = np.eye(m)
+        fstart[0], fsize[0] = 0, m
+        nb = 1
+    S = Z.copy()
+    ZX = np.ascontiguousarray(Z[:, :k]) @ X if k else np.zeros((n, m))
+    S[:, k:] = (ZX + Z[:, k:]) @ Q
+    Y = np.ascontiguousarray(Z.T)
+    if k:
+        Y[:k] -= X @ np.ascontiguousarray(Z[:, k:].T)
+    Y[k:] = np.linalg.solve(Q, np.ascontiguousarray(Z[:, k:].T))
+    cs = np.abs(S).sum(axis=0).max() * np.abs(Y).sum(axis=0).max()
+    nblk = nb + (1 if k else 0)
+    bstart = np.zeros(nblk, dtype=np.int64)
+    bsize = np.zeros(nblk, dtype=np.int64)
+    bkind = np.zeros(nblk, dtype=np.int64)
+    if not (np.isfinite(S).all() and np.isfinite(Y).all()) or cs > _COND_MAX:
+        bsize1 = np.array([n], dtype=np.int64)
+        return np.eye(n), np.eye(n), np.zeros(1, dtype=np.int64), bsize1, np.zeros(1, dtype=np.int64)
+    o = 0
+    if k:
+        bstart[0], bsize[0], bkind[0] = 0, k, _SLOW_BLOCK
+        o = 1
+    for b in range(nb):
+        bstart[o + b] = k + fstart[b]
+        bsize[o + b] = fsize[b]
+        bkind[o + b] = _EUCLID_BLOCK if fast_ok else _GENERAL_BLOCK
+    return S, Y, bstart, bsize, bkind
+
+
+def _decompose_arrays(A: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
+    """:func:`_decompose` with the blocks as arrays ``bstart, bsize, bkind``: the Schur form,
+    the Sylvester equation and the eigensolve in LAPACK, the rest compiled (:func:`_assemble`);
+    falls back to :func:`_decompose` wherever the compiled path cannot decide (a singular basis)."""
+    n = A.shape[0]
+    slow = lambda re, im: bool(math.hypot(re, im) * h <= SLOW)  # noqa: E731
+    if n == 0 or not np.isfinite(A).all():
+        return _reference_arrays(A, h)
+    # LAPACK's dgees and dgeev as scipy.linalg.schur and numpy's eig call them, without their
+    # wrappers' overhead (a few µs each, paid per configuration and batch variant)
+    T, k, _, _, Z, _, info = _dgees(slow, A, sort_t=1, overwrite_a=0)
+    if info != 0:
+        return _reference_arrays(A, h)
+    if k == n:
+        return (np.eye(n), np.eye(n), np.zeros(1, dtype=np.int64), np.array([n], dtype=np.int64),
+                np.zeros(1, dtype=np.int64))
+    X = np.zeros((k, n - k))
+    if k:
+        X, scale, info = scipy.linalg.lapack.dtrsyl(T[:k, :k], T[k:, k:], -T[:k, k:], isgn=-1)
+        if info < 0 or not scale > 0:
+            return (np.eye(n), np.eye(n), np.zeros(1, dtype=np.int64),
+                    np.array([n], dtype=np.int64), np.zeros(1, dtype=np.int64))
+        X = X / scale
+    wr, wi, _, vr, info = _dgeev(T[k:, k:], compute_vl=0, compute_vr=1)
+    if info != 0:
+        return _reference_arrays(A, h)
+    try:
+        return _assemble(np.ascontiguousarray(Z), np.ascontiguousarray(X), k,
+                         *_eigenpairs(wr, wi, vr))
+    except Exception:  # noqa: BLE001 - a singular basis: the reference path decides
+        return _reference_arrays(A, h)
+
+
+_dgees = scipy.linalg.lapack.dgees
+_dgeev = scipy.linalg.lapack.dgeev
+
+
+@njit(cache=True)
+def _eigenpairs(wr, wi, vr):
+    """Eigenvalues and right eigenvectors from dgeev's real output, as numpy's ``eig`` forms
+    them (a complex pair's vectors are ``vr[:, j] ± i vr[:, j+1]``)."""
+    m = wr.shape[0]
+    lam = np.empty(m, dtype=np.complex128)
+    V = np.empty((m, m), dtype=np.complex128)
+    j = 0
+    while j < m:
+        if wi[j] != 0.0 and j + 1 < m:
+            lam[j] = complex(wr[j], wi[j])
+            lam[j + 1] = complex(wr[j + 1], wi[j + 1])
+            for i in range(m):
+                V[i, j] = complex(vr[i, j], vr[i, j + 1])
+                V[i, j + 1] = complex(vr[i, j], -vr[i, j + 1])
+            j += 2
+        else:
+            lam[j] = complex(wr[j], wi[j])
+            for i in range(m):
+                V[i, j] = complex(vr[i, j], 0.0)
+            j += 1
+    return lam, V
+
+
+def _reference_arrays(A: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
+    """:func:`_decompose` (the reference path, with scipy's and numpy's checks) as arrays."""
+    S, Y, blocks = _decompose(A, h)
+    return (S, Y) + tuple(np.array(col, dtype=np.int64) for col in zip(
+        *((st, sz, _KINDS[kind]) for st, sz, kind in blocks)))
+
+
+@njit(cache=True)
+def _configuration(PEc, Lc, Gv, c, S, Y, bstart, bsize, bkind, h, levels,
+                   PsiT, KU, KP, K3, D, pair, GH):
+    """Every bound of :func:`curvature_bounds` for one configuration ``c`` (``PEc = [A_c B_c]``,
+    ``Lc`` its holding-force rows, ``Gv`` the sliding-velocity rows) into the output slices;
+    returns ``kd``. Compiled: it runs once per configuration and batch variant."""
+    nx = PEc.shape[0]
+    nz = PEc.shape[1]
+    nf = Lc.shape[0]
+    nu = nz - nx - nf
+    A = np.ascontiguousarray(PEc[:, :nx])
+    Psi = Y @ PEc
+    PsiT[:, :] = Psi.T
+    for b in range(bstart.shape[0]):
+        if bkind[b] == _EUCLID_BLOCK and bsize[b] == 2:
+            pair[bstart[b]] = 1
+    R = np.empty((nf, nx))
+    for j in range(nf):
+        if (c >> j) & 1:
+            R[j] = Lc[j, :nx]
+        else:
+            R[j] = Gv[j]
+    ku, kp, k3 = _coefficients(R, Y, S, A, bstart, bsize, bkind, h, levels)
+    KU[:] = ku
+    KP[:] = kp
+    K3[:] = k3
+    D[:, 0] = R @ PEc
+    D[:, 1] = (R @ A) @ PEc
+    gh, kd = _growth(Y, S, A, np.ascontiguousarray(PEc[:, nx:nx + nu]), bstart, bsize, bkind, h)
+    GH[:] = gh
+    return kd
+
+
 def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
                      levels: int) -> tuple[np.ndarray, ...]:
     """The kernel's in-step event bounds of every stick configuration of stacked parts.
@@ -389,25 +585,14 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
     nu = nz - nx - nf
     GH = np.zeros((n_parts, nc, nx, nx + 1 + nu))
     kd = np.zeros((n_parts, nc), dtype=np.int64)
+    PE = np.ascontiguousarray(PE, dtype=float)
+    L = np.ascontiguousarray(L, dtype=float)
+    G = np.ascontiguousarray(G, dtype=float)
     for v in range(n_parts):
         for c in range(nc):
-            A = PE[v, c, :, :nx]
-            S, Y, blocks = _decompose(A, step)
-            PsiT[v, c] = (Y @ PE[v, c]).T
-            for start, size, kind in blocks:
-                if kind == "euclid" and size == 2:
-                    pair[v, c, start] = 1
-            R = np.array([L[v, c, j, :nx] if (c >> j) & 1 else G[v, j] for j in range(nf)])
-            bstart, bsize, bkind = (np.array(col, dtype=np.int64) for col in zip(
-                *((st, sz, _KINDS[kind]) for st, sz, kind in blocks)))
-            KU[v, c], KP[v, c], K3[v, c] = _coefficients(R, np.ascontiguousarray(Y),
-                                                         np.ascontiguousarray(S),
-                                                         np.ascontiguousarray(A), bstart, bsize,
-                                                         bkind, float(step), int(levels))
-            D[v, c, :, 0] = R @ PE[v, c]
-            D[v, c, :, 1] = (R @ A) @ PE[v, c]
-            GH[v, c], kd[v, c] = _growth(np.ascontiguousarray(Y), np.ascontiguousarray(S),
-                                         np.ascontiguousarray(A),
-                                         np.ascontiguousarray(PE[v, c, :, nx:nx + nu]),
-                                         bstart, bsize, bkind, float(step))
+            S, Y, bstart, bsize, bkind = _decompose_arrays(PE[v, c, :, :nx], step)
+            kd[v, c] = _configuration(PE[v, c], L[v, c], G[v], c, np.ascontiguousarray(S),
+                                      np.ascontiguousarray(Y), bstart, bsize, bkind, float(step),
+                                      int(levels), PsiT[v, c], KU[v, c], KP[v, c], K3[v, c],
+                                      D[v, c], pair[v, c], GH[v, c])
     return tuple(np.ascontiguousarray(a) for a in (PsiT, KU, KP, K3, D, pair, GH, kd))

@@ -436,7 +436,10 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
     case; an event at its end is resolved there (and the bounds recomputed in the new
     configuration). So every point of the finest grid ``h / 2**levels`` where an event function
     is past its event, and every excursion inside the step that lasts longer than a finest
-    sub-step, is found. Returns the new configuration and the number of events.
+    sub-step, is found. A try refused because an event function is past its event at its end
+    marks that grid point: until the next event, tries end before it (a try over it would be
+    refused again: bisection without the failed try of twice the length after each half taken).
+    Returns the new configuration and the number of events.
     """
     nz = z.shape[0]
     nf = stuck.shape[0]
@@ -448,8 +451,11 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
     _link_values(z, cfg, stuck, dirn, Lz, G, static, nx, g0)
     _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
     grow = 0                   # the level to try next: one coarser than the last one taken
+    horizon = total + 1        # a finest-grid point known to hold an event (none yet)
     while pos < total:
         rem = total - pos
+        if horizon - pos > 1:  # tries end before a point known to hold an event
+            rem = min(rem, horizon - pos - 1)
         lev = grow
         while (1 << (levels - lev)) > rem:
             lev += 1
@@ -469,6 +475,8 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
                               or _taylor_clear(z, g0, xi, K3, D, cfg, step / (1 << lev), stuck,
                                                dirn, static, nx)):
                 break
+            if event:
+                horizon = min(horizon, pos + (1 << (levels - lev)))
             lev += 1
         for i in range(nx):
             z[i] = zc[i]
@@ -479,6 +487,7 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
             for i in range(nx, nz):
                 zc[i] = z[i]
             n_events += 1
+            horizon = total + 1    # a new configuration: new event functions
             _link_values(z, cfg, stuck, dirn, Lz, G, static, nx, g0)
             _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
         else:
