@@ -144,7 +144,7 @@ def test_window_mask_and_to_dict_and_plot(tmp_path):
     assert len(data["reversal_spikes"]) == 4
     fig = res.plot()
     assert isinstance(fig, Figure) and fig.axes[0].name == "polar"
-    assert "circular deviation G" in fig.axes[0].get_title()
+    assert "circular deviation G" in fig.get_suptitle()
     assert save_figure(res.plot(magnification=2000), tmp_path / "ballbar.png").stat().st_size > 0
 
 

@@ -410,7 +410,7 @@ def test_circle_plot_magnification_is_automatic_round_and_shown():
     mantissa = factor / 10 ** np.floor(np.log10(factor))
     # a 1-2-5 factor, as printed: the division by a power of ten rounds once (a few eps; 1e-9)
     assert min(abs(mantissa - m) for m in (1, 2, 5)) < 1e-9
-    assert f"×{factor:g}" in ax.get_title()
+    assert f"×{factor:g}" in fig.get_suptitle()
     drawn = np.max(np.abs(np.asarray(actual.get_ydata()) - 1.0))  # nominal circle at 1: fraction of R
     # the rule's window (8-20 % of R), plus the rounding of fractions of R near 1 drawn (a few eps; 1e-12)
     assert 0.08 - 1e-12 <= drawn <= 0.2 + 1e-12, drawn

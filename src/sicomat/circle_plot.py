@@ -70,7 +70,7 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
                         fontsize=7, color="tab:red")
     direction = "CW" if result.clockwise else "CCW"
     feed = f", F = {result.feed * 60e3:.4g} mm/min" if result.feed else ""
-    ax.set_title(f"Circle test R = {radius * 1e3:.4g} mm, {direction}{feed}, deviation drawn ×{magnification:g}\n"
+    fig.suptitle(f"Circle test R = {radius * 1e3:.4g} mm, {direction}{feed}, deviation drawn ×{magnification:g}\n"
                  f"circular deviation G = {result.circular_deviation * 1e6:.3g} µm, "
                  f"F min/max = {result.radial_deviation_min * 1e6:.3g} / {result.radial_deviation_max * 1e6:.3g} µm\n"
                  f"mean radial deviation {result.mean_radial_deviation * 1e6:.3g} µm, servo mismatch "
