@@ -403,3 +403,12 @@ def test_compiled_decomposition_matches_the_reference(case):
     tol = 10 * n * np.finfo(float).eps * cond
     assert np.abs(S - S_ref).max() <= tol * np.abs(S_ref).max()
     assert np.abs(Y - Y_ref).max() <= tol * np.abs(Y_ref).max()
+
+
+def test_the_reference_decomposition_does_not_recurse_on_non_finite_input():
+    # the compiled path hands non-finite matrices to the reference one, which must decide by itself
+    # (scipy's own check), not hand them back (a RecursionError before)
+    from sicomat.simulate.envelope import _decompose_arrays
+
+    with pytest.raises(ValueError, match="infs or NaNs"):
+        _decompose_arrays(np.array([[0.0, 1.0], [np.nan, 0.0]]), 1e-3)

@@ -106,13 +106,7 @@ def _decompose(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, list[tu
     Whatever cannot be separated safely stays in one general block (componentwise bounds)."""
     n = A.shape[0]
     slow = lambda re, im: bool(math.hypot(re, im) * h <= SLOW)  # noqa: E731
-    if n == 0 or not np.isfinite(A).all():
-        return _reference_arrays(A, h)
-    # LAPACK's dgees and dgeev as scipy.linalg.schur and numpy's eig call them, without their
-    # wrappers' overhead (a few µs each, paid per configuration and batch variant)
-    T, k, _, _, Z, _, info = _dgees(slow, A, sort_t=1, overwrite_a=0)
-    if info != 0:
-        return _reference_arrays(A, h)
+    T, Z, k = scipy.linalg.schur(A, output="real", sort=slow)
     if k == n:
         return np.eye(n), np.eye(n), [(0, n, "slow")]
     X = np.zeros((k, n - k))
