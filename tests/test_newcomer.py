@@ -496,3 +496,10 @@ def test_json_stdout_stays_pure_with_the_progress_bar_on(terminal_stderr, args):
 def test_no_progress_bar_when_stderr_is_not_a_terminal():
     result = run("simulate", P5M4S, "--move", "5", "--duration", "1", "--json")
     assert result.exit_code == 0 and result.stderr == ""
+
+
+def test_tune_table_prints_the_suggested_notch_as_fields_not_a_python_dict():
+    result = run("tune", P5M4S)
+    assert result.exit_code == 0, result.output
+    line = next(line for line in result.stdout.splitlines() if line.strip().startswith("notch:"))
+    assert "{" not in line and "frequency_hz 374" in line

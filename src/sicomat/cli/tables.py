@@ -224,6 +224,8 @@ def print_tuning(axis: str, payload: dict[str, Any]) -> None:
     for key, value in achieved.items():
         if key in ("unmet",) or value is None:
             continue
+        if isinstance(value, dict):      # e.g. the suggested notch: one "key value" pair per field
+            value = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in value.items())
         console.print(f"  {key}: {value:.4g}" if isinstance(value, float) else f"  {key}: {value}")
     # the unmet targets are among the warnings, printed with the verdict (print_verdict)
     if "equivalent_delay_s" in payload:
