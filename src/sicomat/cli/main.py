@@ -344,10 +344,6 @@ def circle(model: Path = ModelArgument,
 
         if feedforward is not None and feedforward not in ("on", "off"):
             raise ModelError("expected 'on' or 'off'", source="--feedforward", value=feedforward)
-        if not radius > 0:
-            raise ModelError("the radius must be > 0 mm", source="--radius", value=radius)
-        if not feed > 0:
-            raise ModelError("the feed must be > 0 mm/min", source="--feed", value=feed)
         from ..atomic import check_outputs
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
@@ -451,9 +447,6 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
         if loop not in ("velocity", "position"):
             raise ModelError("expected 'velocity' or 'position'", source="--loop", value=loop)
-        for name, value in (("--Kp", kp), ("--Ti", ti), ("--Kv", kv), ("--duration", duration)):
-            if value is not None and not value > 0:
-                raise ModelError("expected a value > 0", source=name, value=value)
         from ..atomic import check_outputs
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})

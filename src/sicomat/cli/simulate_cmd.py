@@ -24,9 +24,6 @@ def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration)
 
     if step_mm is not None and move_mm is not None:
         raise ModelError("give either --step or --move, not both", source="options")
-    for name, value in (("--max-velocity", max_velocity), ("--max-acceleration", max_acceleration)):
-        if value is not None and value <= 0:
-            raise ModelError(f"{name} must be > 0", source="options", value=value)
     if step_mm is not None:
         return step_profile(step_mm * 1e-3), 0.3
     if move_mm is not None:
