@@ -60,28 +60,24 @@ def parse_band(band: str | Sequence[float] | None) -> tuple[float, float] | None
 
 def parse_keep(keep: str | Sequence[str] | None) -> list[str] | None:
     """``"a,b,c"`` (or a list of names, each possibly comma-separated) as a list of body names."""
-    if keep is None:
-        return None
-    items = [keep] if isinstance(keep, str) else list(keep)
-    names = [part.strip() for item in items for part in str(item).split(",")]
-    names = [n for n in names if n]
-    if not names:
-        raise ModelError("the keep-list is empty; expected body names separated by commas",
-                         source="--keep", value=",".join(items) if items else "")
-    return names
+    return _names(keep, "--keep", "the keep-list is empty; expected body names separated by commas")
 
 
 def parse_signals(names: str | Sequence[str] | None, option: str) -> list[str] | None:
     """``"a,b"`` (or a list of names, each possibly comma-separated) as a list of signal names."""
-    if names is None:
+    return _names(names, option, "expected signal names separated by commas")
+
+
+def _names(value: str | Sequence[str] | None, option: str, empty: str) -> list[str] | None:
+    """Comma-separated names of an option (a string or a list of them); ``empty`` when there are none."""
+    if value is None:
         return None
-    items = [names] if isinstance(names, str) else list(names)
-    parts = [part.strip() for item in items for part in str(item).split(",")]
-    parts = [p for p in parts if p]
-    if not parts:
-        raise ModelError("expected signal names separated by commas", source=option,
-                         value=",".join(str(i) for i in items))
-    return parts
+    items = [value] if isinstance(value, str) else list(value)
+    names = [part.strip() for item in items for part in str(item).split(",")]
+    names = [n for n in names if n]
+    if not names:
+        raise ModelError(empty, source=option, value=",".join(str(i) for i in items))
+    return names
 
 
 def default_transfer(axis: "Axis") -> tuple[list[str], list[str], str]:
