@@ -48,13 +48,13 @@ import numpy as np  # noqa: E402
 import scipy.optimize  # noqa: E402
 
 import sicomat  # noqa: E402
-from sicomat.frequency import continuous_response, modal_form  # noqa: E402
-from sicomat.loop import ServoLoop, build_servo_loop  # noqa: E402
-from sicomat.looptf import LoopAnalysis  # noqa: E402
-from sicomat.margins import stability_margins  # noqa: E402
-from sicomat.mechanics import build_mechanics  # noqa: E402
-from sicomat.model import ChainSpec  # noqa: E402
-from sicomat.tuning import TuningTargets, equivalent_delay, tune_frequency  # noqa: E402
+from sicomat.lti.response import continuous_response, modal_form  # noqa: E402
+from sicomat.servo.loop import ServoLoop, build_servo_loop  # noqa: E402
+from sicomat.frequency.loops import LoopAnalysis  # noqa: E402
+from sicomat.frequency.margins import stability_margins  # noqa: E402
+from sicomat.mechanics.lumped import build_mechanics  # noqa: E402
+from sicomat.description.shorthands import ChainSpec  # noqa: E402
+from sicomat.tuning.frequency import TuningTargets, equivalent_delay, tune_frequency  # noqa: E402
 
 N_MASSES = 200
 N_FREQ = 10_000

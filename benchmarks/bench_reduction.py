@@ -38,9 +38,9 @@ from typing import Any, Callable  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from sicomat.mechanics import build_mechanics  # noqa: E402
-from sicomat.model import ChainSpec  # noqa: E402
-from sicomat.plant import Plant  # noqa: E402
+from sicomat.mechanics.lumped import build_mechanics  # noqa: E402
+from sicomat.description.shorthands import ChainSpec  # noqa: E402
+from sicomat.lti.plant import Plant  # noqa: E402
 from sicomat.reduction import (balanced_truncation, error_metrics, frequency_limited_truncation,  # noqa: E402
                                hankel_norm_approximation, modal_truncation, physical_reduction,
                                schur_truncation)

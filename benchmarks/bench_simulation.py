@@ -7,7 +7,7 @@ one-sample computation delays in both loops, the scale's 0.1 µm quantization (p
 differenced velocity), the current limit (peak and voltage) with clamping anti-windup, and Coulomb
 friction with true stick–slip on the motor guide.
 
-- **Ours**: ``sicomat.simulate.kernel.run(program, n_steps)`` after a warm-up call (the first call,
+- **Ours**: ``sicomat.simulation.kernel.run(program, n_steps)`` after a warm-up call (the first call,
   numba cache load or compilation, is reported apart), setup included (lowering to flat arrays and the
   exact discretisation; ``run(program, 1)`` times it alone). Variants show the cost of recording (all
   20 slots and the states at every step; 3 slots; 3 slots every 8th step through ``run_batch``), of the
@@ -61,11 +61,11 @@ import numpy as np  # noqa: E402
 import scipy.linalg  # noqa: E402
 
 import sicomat  # noqa: E402
-from sicomat.frequency import zoh_matrices  # noqa: E402
-from sicomat.loop import ServoLoop, build_servo_loop, servo_plant  # noqa: E402
-from sicomat.modelfile import with_overrides  # noqa: E402
-from sicomat.setpoints import Profile, profile_from_spec  # noqa: E402
-from sicomat.simulate import kernel, loop_program, loop_programs, simulate  # noqa: E402
+from sicomat.lti.response import zoh_matrices  # noqa: E402
+from sicomat.servo.loop import ServoLoop, build_servo_loop, servo_plant  # noqa: E402
+from sicomat.io.modelfile import with_overrides  # noqa: E402
+from sicomat.motion.setpoints import Profile, profile_from_spec  # noqa: E402
+from sicomat.simulation import kernel, loop_program, loop_programs, simulate  # noqa: E402
 
 DURATION = 1.0
 N_VARIANTS = 1000
@@ -205,7 +205,7 @@ def _bare_system(program, closed_loop: bool = True) -> tuple[np.ndarray, np.ndar
 
 def controller_states(program) -> int:
     """States of the program outside its continuous part: discrete block states and delay-line samples."""
-    from sicomat.simulate.program import Delay
+    from sicomat.simulation.program import Delay
 
     return (sum(int(np.shape(b.A)[0]) if np.size(b.A) else 0 for b in program.blocks)
             + sum(int(op.samples) for op in program.ops if isinstance(op, Delay)))
@@ -354,7 +354,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     peer = _peer(loop, profile, h, quick)
     resp = peer.pop("response")
     n_cmp = resp.outputs.shape[1]
-    from sicomat.simulate import named_signals
+    from sicomat.simulation import named_signals
 
     sig = named_signals(loop, program, res.records, profile.evaluate(res.time)[0], res.states)
     load_ours = sig["tool.position"][:n_cmp]

@@ -10,8 +10,8 @@ import time
 import numpy as np
 import scipy.linalg
 
-from sicomat.simulate import program as p
-from sicomat.simulate.kernel import bare_loop, run, run_batch
+from sicomat.simulation import program as p
+from sicomat.simulation.kernel import bare_loop, run, run_batch
 
 H = 1.0 / 8000.0          # base step: 8 kHz velocity loop
 POSITION_PERIOD = 4       # 2 kHz position loop

@@ -9,9 +9,9 @@ from accuracy import transfer_accuracy
 
 from sicomat import machine_from_dict
 from sicomat.errors import ModelError
-from sicomat.loop import build_servo_loop
-from sicomat.setpoints import trapezoid_profile
-from sicomat.simulate import simulate
+from sicomat.servo.loop import build_servo_loop
+from sicomat.motion.setpoints import trapezoid_profile
+from sicomat.simulation import simulate
 
 M1, M2, K, C = 10.0, 30.0, 2.0e6, 500.0     # motor-side mass, table, transmission
 KT, TAU = 50.0, 2.0e-4
@@ -167,7 +167,7 @@ def _realisation_accuracy(sys, omega):
 
 
 def _analysis(**controller):
-    from sicomat.looptf import LoopAnalysis
+    from sicomat.frequency.loops import LoopAnalysis
 
     return LoopAnalysis.of(build_servo_loop(_machine(**controller)))
 
@@ -222,7 +222,7 @@ def test_analog_position_closed_loop_and_compliance_against_python_control():
 
 @pytest.mark.parametrize("position_loop", ["discrete", "continuous"])
 def test_frequency_tuning_of_an_analog_loop_reaches_its_targets_by_python_control(position_loop):
-    from sicomat.tuning import TuningTargets, tune_frequency
+    from sicomat.tuning.frequency import TuningTargets, tune_frequency
 
     # velocity from the motor side (collocated): the load-side reading limits this axis to ~45 rad/s
     # whether the loop is analog or sampled
@@ -257,8 +257,8 @@ def test_frequency_tuning_of_an_analog_loop_reaches_its_targets_by_python_contro
 
 @pytest.mark.parametrize("position_loop", ["discrete", "continuous"])
 def test_step_responses_of_analog_loops_are_the_sampled_continuous_ones(position_loop):
-    from sicomat.looptf import LoopAnalysis
-    from sicomat.tuning_time import position_step, velocity_step
+    from sicomat.frequency.loops import LoopAnalysis
+    from sicomat.tuning.time import position_step, velocity_step
 
     loop = build_servo_loop(_machine(position_loop=position_loop, position_period=4 * H,
                                      **({"position_delay": 1} if position_loop == "discrete" else {})))
@@ -286,7 +286,7 @@ def test_step_responses_of_analog_loops_are_the_sampled_continuous_ones(position
 
 
 def test_time_approach_tunes_an_analog_loop():
-    from sicomat.tuning_time import TimeTargets, tune_time
+    from sicomat.tuning.time import TimeTargets, tune_time
 
     result = tune_time(build_servo_loop(_machine(velocity_sensor="first")), TimeTargets())
     assert result.Kp > 0 and result.Kv > 0 and result.velocity.stable and result.position.stable
@@ -327,7 +327,7 @@ def test_analog_loop_at_rest_holds_the_stuck_friction_with_its_integral_action()
     from pathlib import Path
 
     import sicomat
-    from sicomat.setpoints import step_profile
+    from sicomat.motion.setpoints import step_profile
 
     model = Path(__file__).resolve().parents[1] / "examples" / "rigid_1m.toml"
     machine = sicomat.load_model(model, ["axes.X.controller.velocity_delay=0",

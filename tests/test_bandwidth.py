@@ -15,10 +15,10 @@ from typer.testing import CliRunner
 
 import sicomat
 from sicomat.cli.main import app
-from sicomat.frequency import FrequencyResponse, static_gain, zoh_matrices
-from sicomat.loop import build_servo_loop
-from sicomat.looptf import LoopAnalysis
-from sicomat.margins import closed_loop, closed_loop_bandwidth, stability_margins
+from sicomat.lti.response import FrequencyResponse, static_gain, zoh_matrices
+from sicomat.servo.loop import build_servo_loop
+from sicomat.frequency.loops import LoopAnalysis
+from sicomat.frequency.margins import closed_loop, closed_loop_bandwidth, stability_margins
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

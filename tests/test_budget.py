@@ -40,10 +40,10 @@ def test_require_memory_names_the_estimate_the_limit_and_the_variable(monkeypatc
 def test_the_python_api_is_protected_too(monkeypatch):
     monkeypatch.delenv("SICOMAT_MAX_MEMORY", raising=False)
     from sicomat import load_model
-    from sicomat.loop import build_servo_loop
-    from sicomat.path import Line, Path as ToolPath, interpolate
-    from sicomat.setpoints import step_profile
-    from sicomat.simulate import simulate
+    from sicomat.servo.loop import build_servo_loop
+    from sicomat.motion.path import Line, Path as ToolPath, interpolate
+    from sicomat.motion.setpoints import step_profile
+    from sicomat.simulation import simulate
 
     loop = build_servo_loop(load_model(EXAMPLES / "rigid_1m.toml"))
     with pytest.raises(ResourceError, match="this simulation needs about"):

@@ -1,4 +1,4 @@
-"""sicomat.circle.evaluate_circle: ISO 230-4 figures on synthetic circles and on first-order followers."""
+"""sicomat.motion.circle.evaluate_circle: ISO 230-4 figures on synthetic circles and on first-order followers."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ from matplotlib.figure import Figure
 from numpy.testing import assert_allclose
 from scipy import signal
 
-from sicomat.circle import evaluate_circle, least_squares_circle
+from sicomat.motion.circle import evaluate_circle, least_squares_circle
 from sicomat.errors import ModelError
-from sicomat.path import circle_test_path, interpolate
-from sicomat.plotting import save_figure
+from sicomat.motion.path import circle_test_path, interpolate
+from sicomat.plots.base import save_figure
 
 R = 0.05
 CENTER = (0.12, -0.03)

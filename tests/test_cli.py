@@ -209,9 +209,9 @@ def test_margins_and_bode_json(tmp_path):
 
 
 def test_step_command_is_the_manual_time_approach(tmp_path):
-    from sicomat.loop import build_servo_loop
-    from sicomat.looptf import LoopAnalysis
-    from sicomat.tuning_time import velocity_step
+    from sicomat.servo.loop import build_servo_loop
+    from sicomat.frequency.loops import LoopAnalysis
+    from sicomat.tuning.time import velocity_step
 
     result = run("step", P5M4S, "--loop", "velocity", "--Kp", "120", "--Ti", "0.02", "--json",
                  "--plot", str(tmp_path / "step.png"))

@@ -1,4 +1,4 @@
-"""sicomat.conditioning: models whose numbers double precision cannot carry are refused, by name."""
+"""sicomat.mechanics.conditioning: models whose numbers double precision cannot carry are refused, by name."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from sicomat import ChainSpec, build_mechanics, modal_analysis
-from sicomat.conditioning import check_numeric_range
+from sicomat.mechanics.conditioning import check_numeric_range
 from sicomat.errors import AnalysisError, ModelError
 
 
@@ -41,14 +41,14 @@ def test_a_resolvable_spread_keeps_its_soft_mode():
                                          ({"bodies.a.mass": 1.0, "couplings.k.stiffness": 1e-120},
                                           "couplings.k.stiffness")])
 def test_values_outside_the_double_precision_range_are_refused(values, key):
-    # (a file never gets here: sicomat.units refuses such magnitudes as it reads them)
+    # (a file never gets here: sicomat.description.units refuses such magnitudes as it reads them)
     with pytest.raises(ModelError, match="in double precision") as info:
         check_numeric_range(values)
     assert info.value.path == f"mechanics.{key}"
 
 
 def test_a_negative_damping_ratio_is_never_reported():
-    from sicomat.modal import Mode, _check_passive
+    from sicomat.mechanics.modal import Mode, _check_passive
 
     good = Mode(frequency_hz=80.0, damping_ratio=0.01, damped_frequency_hz=79.99, undamped_hz=80.0,
                 shape={"a": 1.0}, rigid=False)

@@ -1,4 +1,4 @@
-"""sicomat.contour.contour_error: exact distances to lines and arcs, a perfect follower, a dense-polyline peer."""
+"""sicomat.motion.contour.contour_error: exact distances to lines and arcs, a perfect follower, a dense-polyline peer."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial import cKDTree
 
-from sicomat.contour import contour_error
+from sicomat.motion.contour import contour_error
 from sicomat.errors import ModelError
-from sicomat.gcode import parse_gcode
-from sicomat.path import Arc, Line, Path, circle_test_path, interpolate
+from sicomat.motion.gcode import parse_gcode
+from sicomat.motion.path import Arc, Line, Path, circle_test_path, interpolate
 
 PROGRAM = """G90 G17 G01 X0 Y0 F3000
 X40

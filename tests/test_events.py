@@ -11,14 +11,14 @@ from scipy.integrate import solve_ivp
 from accuracy import EPS
 
 import sicomat
-from sicomat.loop import build_servo_loop
-from sicomat.modelfile import with_overrides
-from sicomat.setpoints import Profile, trapezoid_profile
-from sicomat.simulate import loop_program
-from sicomat.simulate import program as p
-from sicomat.simulate.continuous import constrained_dynamics, discretize
-from sicomat.simulate.envelope import curvature_bounds
-from sicomat.simulate.kernel import run
+from sicomat.servo.loop import build_servo_loop
+from sicomat.io.modelfile import with_overrides
+from sicomat.motion.setpoints import Profile, trapezoid_profile
+from sicomat.simulation import loop_program
+from sicomat.simulation import program as p
+from sicomat.simulation.continuous import constrained_dynamics, discretize
+from sicomat.simulation.envelope import curvature_bounds
+from sicomat.simulation.kernel import run
 
 LEVELS = 10
 
@@ -342,7 +342,7 @@ def test_the_envelope_tests_never_clear_a_crossing():
     # a chord minus its envelope (U + C tau (1 - tau)), and the degree-2 Taylor polynomial minus
     # M3 s^3 / 6; a "clear" answer must mean the polynomial stays positive (zero coefficients,
     # touching ends and vertices at the ends included by the draws)
-    from sicomat.simulate.kernel import _cubic_positive, _may_cross
+    from sicomat.simulation.kernel import _cubic_positive, _may_cross
 
     rng = np.random.default_rng(2)
     tau = np.linspace(0.0, 1.0, 2001)
@@ -391,7 +391,7 @@ def test_compiled_decomposition_matches_the_reference(case):
     # same formulas on the same Schur and eigenvector factors, so they differ only in the
     # summation order of products of size n and in the solve for Y, i.e. by at most
     # ~n * eps * cond(S) relative to the norms (10x that is left for the Sylvester solve)
-    from sicomat.simulate.envelope import _KINDS, _decompose, _decompose_arrays
+    from sicomat.simulation.envelope import _KINDS, _decompose, _decompose_arrays
 
     A, h = _decomposition_cases()[case]
     S_ref, Y_ref, blocks = _decompose(A, h)
@@ -408,7 +408,7 @@ def test_compiled_decomposition_matches_the_reference(case):
 def test_the_reference_decomposition_does_not_recurse_on_non_finite_input():
     # the compiled path hands non-finite matrices to the reference one, which must decide by itself
     # (scipy's own check), not hand them back (a RecursionError before)
-    from sicomat.simulate.envelope import _decompose_arrays
+    from sicomat.simulation.envelope import _decompose_arrays
 
     with pytest.raises(ValueError, match="infs or NaNs"):
         _decompose_arrays(np.array([[0.0, 1.0], [np.nan, 0.0]]), 1e-3)

@@ -1,4 +1,4 @@
-"""sicomat.gcode.parse_gcode: the supported subset, modal behaviour, units, and one clear error per fault."""
+"""sicomat.motion.gcode.parse_gcode: the supported subset, modal behaviour, units, and one clear error per fault."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from sicomat.errors import ModelError
-from sicomat.gcode import GCodeError, parse_gcode
-from sicomat.path import Arc, Line
+from sicomat.motion.gcode import GCodeError, parse_gcode
+from sicomat.motion.path import Arc, Line
 
 PROGRAM = """%
 (circle test, R 50 mm)

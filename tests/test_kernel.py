@@ -1,4 +1,4 @@
-"""sicomat.simulate.kernel: exact sampled loops, op semantics, stick-slip, divergence, batches."""
+"""sicomat.simulation.kernel: exact sampled loops, op semantics, stick-slip, divergence, batches."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from sicomat.errors import ModelError, SicomatError
-from sicomat.simulate import program as p
-from sicomat.simulate.continuous import constrained_dynamics, discretize, discretize_many
-from sicomat.simulate.kernel import SimulationDiverged, bare_loop, run, run_batch
+from sicomat.simulation import program as p
+from sicomat.simulation.continuous import constrained_dynamics, discretize, discretize_many
+from sicomat.simulation.kernel import SimulationDiverged, bare_loop, run, run_batch
 
 
 # ------------------------------------------------------------------------------------------ helpers

@@ -8,9 +8,9 @@ import pytest
 
 from sicomat import machine_from_dict
 from sicomat.errors import ModelError
-from sicomat.loop import build_servo_loop
-from sicomat.setpoints import step_profile, trapezoid_profile
-from sicomat.simulate import simulate
+from sicomat.servo.loop import build_servo_loop
+from sicomat.motion.setpoints import step_profile, trapezoid_profile
+from sicomat.simulation import simulate
 
 M1, M2, K, C = 10.0, 30.0, 2.0e6, 500.0   # motor-side mass, table, transmission
 KT, TAU = 50.0, 2.0e-4
@@ -119,7 +119,7 @@ def test_step_metrics_of_a_settling_move():
     assert m.max_following_error == pytest.approx(1e-3, rel=1e-9)  # the step itself
     assert abs(m.final_error) < 1e-8
     # the measured position sampled at the position period follows the lifted closed loop exactly
-    from sicomat.looptf import LoopAnalysis
+    from sicomat.frequency.loops import LoopAnalysis
 
     an = LoopAnalysis.of(loop)
     A, B, C = an.velocity_closed_loop(loop.Kp, loop.Ti)
@@ -158,7 +158,7 @@ def test_bad_controller_inputs():
 
 
 def test_batch_of_variants_equals_single_runs():
-    from sicomat.simulate import simulate_batch
+    from sicomat.simulation import simulate_batch
 
     base = build_servo_loop(_machine(position_period=4 * H))
     variants = [base.with_gains(Kp=base.Kp * f, Kv=base.Kv * g) for f, g in ((1.0, 1.0), (0.8, 1.1), (1.2, 0.9))]
@@ -174,7 +174,7 @@ def test_batch_of_variants_equals_single_runs():
 
 
 def test_batch_variants_must_share_the_loop_timing():
-    from sicomat.simulate import simulate_batch
+    from sicomat.simulation import simulate_batch
 
     loops = [build_servo_loop(_machine(position_period=4 * H)), build_servo_loop(_machine(position_period=2 * H))]
     with pytest.raises(ModelError, match="variant 1: the loop periods differ") as err:

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import sicomat
-from sicomat.loop import build_servo_loop, servo_plant
-from sicomat.looptf import LoopAnalysis, default_omega
+from sicomat.servo.loop import build_servo_loop, servo_plant
+from sicomat.frequency.loops import LoopAnalysis, default_omega
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

@@ -1,4 +1,4 @@
-"""Stability margins (sicomat.margins) against closed forms and python-control; Bode/Nichols smoke tests."""
+"""Stability margins (sicomat.frequency.margins) against closed forms and python-control; Bode/Nichols smoke tests."""
 
 from __future__ import annotations
 
@@ -14,10 +14,10 @@ from matplotlib.figure import Figure
 from numpy.testing import assert_allclose
 
 from sicomat.errors import ModelError
-from sicomat.freqplot import bode_figure, nichols_figure
-from sicomat.frequency import FrequencyResponse
-from sicomat.margins import Margins, closed_loop, sensitivity, stability_margins
-from sicomat.plotting import save_figure
+from sicomat.plots.frequency import bode_figure, nichols_figure
+from sicomat.lti.response import FrequencyResponse
+from sicomat.frequency.margins import Margins, closed_loop, sensitivity, stability_margins
+from sicomat.plots.base import save_figure
 
 
 def loop(omega, values, **kwargs) -> FrequencyResponse:

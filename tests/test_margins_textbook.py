@@ -6,8 +6,8 @@ import control
 import numpy as np
 import pytest
 
-from sicomat.frequency import FrequencyResponse
-from sicomat.margins import stability_margins
+from sicomat.lti.response import FrequencyResponse
+from sicomat.frequency.margins import stability_margins
 
 W = np.logspace(-3, 3, 20000)
 

@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from sicomat import (BeltRackSpec, ChainSpec, LumpedSpec, build_mechanics, load_model,
                      modal_analysis)
-from sicomat.model import GROUND
+from sicomat.description.mechanics import GROUND
 from sicomat.errors import ModelError
 
 
@@ -365,7 +365,7 @@ def test_random_trees(data, perm_seed):
         res = modal_analysis(mech)
     except ModelError as exc:
         # never wrong numbers: a refusal only where the springs' stiffness-to-mass ratios spread so far
-        # that the state matrix's soft poles may carry no digit (sicomat.conditioning's pre-check)
+        # that the state matrix's soft poles may carry no digit (sicomat.mechanics.conditioning's pre-check)
         assert "differ too much" in str(exc)
         assert _risk(mech) > 1e-6
         return

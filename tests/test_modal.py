@@ -1,4 +1,4 @@
-"""sicomat.modal.modal_analysis: frequencies, damping ratios and mode shapes against closed forms."""
+"""sicomat.mechanics.modal.modal_analysis: frequencies, damping ratios and mode shapes against closed forms."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""sicomat.modelfile: loading, overrides, saving and the error messages of model files."""
+"""sicomat.io.modelfile: loading, overrides, saving and the error messages of model files."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from numpy.testing import assert_allclose
 
 from sicomat import (Machine, ModelError, dump_model, load_model, machine_from_dict, save_model,
                      with_overrides)
-from sicomat.modelfile import parse_override
+from sicomat.io.modelfile import parse_override
 
 EXAMPLES_DIR = Path(__file__).resolve().parents[1] / "examples"
 EXAMPLE_FILES = sorted(EXAMPLES_DIR.glob("*.toml"))
@@ -246,7 +246,7 @@ def test_save_model_overwrites(tmp_path):
 
 
 def test_overrides_copy_only_their_path_and_never_touch_the_input():
-    from sicomat.modelfile import _set_path
+    from sicomat.io.modelfile import _set_path
 
     data = {"a": {"b": [1, {"c": 2}], "d": {"e": 3}}, "f": 4}
     out = _set_path(data, "a.b.1.c", 5, source="test")

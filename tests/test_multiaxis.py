@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 import sicomat
 from sicomat.cli.main import app
-from sicomat.multiaxis import circle_test
+from sicomat.simulation.paths import circle_test
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 XY = EXAMPLES / "xy_table.toml"

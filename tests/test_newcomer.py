@@ -91,7 +91,7 @@ def test_tuned_gains_pasted_into_a_model_file_give_the_tuned_loop(tmp_path, meth
 
 def test_step_json_names_gains_as_the_model_file():
     from sicomat import load_model
-    from sicomat.loop import build_servo_loop
+    from sicomat.servo.loop import build_servo_loop
 
     loop = build_servo_loop(load_model(P5M4S))
     payload = json.loads(run("step", P5M4S, "--Kp-normalized", "120", "--json").stdout)
@@ -210,9 +210,9 @@ def test_print_table_keeps_long_numbers_whole_in_a_narrow_console(width):
 # ------------------------------------------------------------------------------------------- plots
 def _series(model: str, move: float = 1e-3):
     from sicomat import load_model
-    from sicomat.loop import build_servo_loop
-    from sicomat.setpoints import trapezoid_profile
-    from sicomat.simulate import simulate
+    from sicomat.servo.loop import build_servo_loop
+    from sicomat.motion.setpoints import trapezoid_profile
+    from sicomat.simulation import simulate
 
     loop = build_servo_loop(load_model(model))
     return simulate(loop, trapezoid_profile(move, 0.1, 1.0), duration=0.05)
@@ -241,7 +241,7 @@ def test_contour_plot_magnifies_the_deviation_visibly_by_default():
     from scipy.spatial import cKDTree
 
     from sicomat import load_model
-    from sicomat.cli.simulate_cmd import simulate_gcode
+    from sicomat.tasks.simulate import simulate_gcode
 
     _, run_ = simulate_gcode(load_model(XY), EXAMPLES / "contour.nc", None, None, None)
     fig = run_.plot()
@@ -272,10 +272,10 @@ def test_nichols_labels_do_not_overlap(model):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     from sicomat import load_model
-    from sicomat.freqplot import nichols_figure
-    from sicomat.loop import build_servo_loop
-    from sicomat.looptf import LoopAnalysis, default_omega
-    from sicomat.margins import stability_margins
+    from sicomat.plots.frequency import nichols_figure
+    from sicomat.servo.loop import build_servo_loop
+    from sicomat.frequency.loops import LoopAnalysis, default_omega
+    from sicomat.frequency.margins import stability_margins
 
     loop = build_servo_loop(load_model(model))
     frf = LoopAnalysis.of(loop).response("velocity-open", default_omega(loop, "velocity-open", 2000))
@@ -383,7 +383,7 @@ def test_docs_link_only_inside_the_repository():
 def test_servo_doc_lists_every_trajectory_type():
     import typing
 
-    from sicomat import servo_spec
+    from sicomat.description import motion as servo_spec
 
     row = next(line for line in (ROOT / "docs" / "servo.md").read_text().splitlines()
                if line.startswith("| trajectory generator"))
@@ -400,7 +400,7 @@ def test_servo_doc_lists_every_trajectory_type():
 
 def test_circle_plot_magnification_is_automatic_round_and_shown():
     from sicomat import load_model
-    from sicomat.multiaxis import circle_test
+    from sicomat.simulation.paths import circle_test
 
     test = circle_test(load_model(XY), 5e-3, 0.01, clockwise=False)
     fig = test.plot()
@@ -429,10 +429,10 @@ class _Recorder:
 
 def test_library_reports_progress_through_a_callback():
     from sicomat import build_mechanics, load_model, modal_analysis
-    from sicomat.loop import build_servo_loop
-    from sicomat.setpoints import trapezoid_profile
-    from sicomat.simulate import simulate
-    from sicomat.tuning import tune_frequency
+    from sicomat.servo.loop import build_servo_loop
+    from sicomat.motion.setpoints import trapezoid_profile
+    from sicomat.simulation import simulate
+    from sicomat.tuning.frequency import tune_frequency
 
     machine = load_model(P5M4S)
     rec = _Recorder()
@@ -450,9 +450,9 @@ def test_library_reports_progress_through_a_callback():
 
 def test_batch_with_progress_gives_the_same_figures():
     from sicomat import load_model
-    from sicomat.loop import build_servo_loop
-    from sicomat.setpoints import trapezoid_profile
-    from sicomat.simulate import simulate_batch
+    from sicomat.servo.loop import build_servo_loop
+    from sicomat.motion.setpoints import trapezoid_profile
+    from sicomat.simulation import simulate_batch
 
     loop = build_servo_loop(load_model(P5M4S))
     loops = [loop.with_gains(Kv=loop.Kv * f) for f in np.linspace(0.5, 1.5, 5)]

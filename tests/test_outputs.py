@@ -156,7 +156,7 @@ def test_out_onto_a_fifo_is_refused(model, tmp_path):
 def test_python_writers_refuse_a_folder(tmp_path):
     import pandas as pd
 
-    from sicomat.timeseries import write_frame_csv
+    from sicomat.io.csv import write_frame_csv
 
     folder = tmp_path / "d.csv"
     folder.mkdir()
@@ -184,7 +184,7 @@ def test_wrong_extension_is_refused_with_the_expected_ones(model, tmp_path, comm
 def test_python_save_model_and_save_figure_check_the_extension(tmp_path):
     from matplotlib.figure import Figure
 
-    from sicomat.plotting import save_figure
+    from sicomat.plots.base import save_figure
 
     with pytest.raises(OutputError, match=r"m\.png: writes a model file; expected a name ending in \.toml"):
         save_model(load_model(EXAMPLES / "rigid_1m.toml"), tmp_path / "m.png")
@@ -196,13 +196,13 @@ def test_python_save_model_and_save_figure_check_the_extension(tmp_path):
 
 # --------------------------------------------------------------------------- checked before the work
 def test_a_bad_output_fails_before_the_computation(model, tmp_path, monkeypatch):
-    import sicomat.simulate
+    import sicomat.simulation
     import sicomat.tuning
 
     def forbidden(*args, **kwargs):
         raise AssertionError("the computation ran before the output was checked")
 
-    monkeypatch.setattr(sicomat.simulate, "simulate", forbidden)
+    monkeypatch.setattr(sicomat.simulation, "simulate", forbidden)
     monkeypatch.setattr(sicomat.tuning, "tune_frequency", forbidden)
     refused(run("simulate", model, "--plot", tmp_path / "x.jpg"), tmp_path / "x.jpg", "--plot")
     refused(run("simulate", model, "--out", tmp_path / "no" / "x.csv"), tmp_path / "no" / "x.csv",
@@ -289,7 +289,7 @@ def test_tune_write_keeps_comments_and_units_and_loads_with_the_tuned_gains(mode
 
 
 def test_tune_write_with_a_notch_appends_it_and_keeps_existing_filters(model, tmp_path):
-    from sicomat.cli.analysis_cmd import write_tuned
+    from sicomat.tasks.analysis import write_tuned
 
     text = model.read_text().replace('velocity_delay = 1\n', 'velocity_delay = 1\n\n'
                                      '[[axes.X.controller.current_filters]]\n'
@@ -333,7 +333,7 @@ def test_reduce_write_keeps_what_it_can_and_says_what_not(model, tmp_path):
     assert 'mass = "270.2 kg"          # printed as M_sensor' in text         # a surviving body as written
     mechanics = text.split("[axes.X.mechanics]")[1].split("[axes.X.drive]")[0]
     assert "bodies.structure]" not in mechanics and '"structure"' not in mechanics   # merged away
-    from sicomat.reduction.cli_support import reduce_command
+    from sicomat.tasks.reduce import reduce_command
 
     expected = reduce_command(load_model(model), None, "physical", None, "primary,load", None).machine
     got = load_model(reduced)
@@ -345,7 +345,7 @@ def test_reduce_write_keeps_what_it_can_and_says_what_not(model, tmp_path):
 
 
 def test_tune_write_edits_inline_tables_and_arrays_in_place(tmp_path):
-    from sicomat.cli.analysis_cmd import write_tuned
+    from sicomat.tasks.analysis import write_tuned
 
     model = tmp_path / "c.toml"
     model.write_text('axes.X.mechanics = { type = "chain", masses = ["10 kg", "20 kg"], '
@@ -367,7 +367,7 @@ def test_tune_write_edits_inline_tables_and_arrays_in_place(tmp_path):
 
 
 def test_an_edit_that_would_not_read_back_falls_back_to_plain_si_and_says_so(model, tmp_path, monkeypatch):
-    import sicomat.modelfile as modelfile
+    import sicomat.io.modelfile as modelfile
 
     monkeypatch.setattr(modelfile, "_reads_as", lambda text, data: False)
     machine = load_model(model)

@@ -1,4 +1,4 @@
-"""sicomat.plant.mechanics_plant: the state space of the paper's eqs. (11)-(12), z = (q, qdot)."""
+"""sicomat.mechanics.statespace.mechanics_plant: the state space of the paper's eqs. (11)-(12), z = (q, qdot)."""
 
 from __future__ import annotations
 

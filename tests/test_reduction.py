@@ -15,13 +15,14 @@ from accuracy import eigenvalue_accuracy
 from numpy.testing import assert_allclose
 
 from sicomat import ChainSpec, LumpedSpec, ModelError, build_mechanics, load_model
-from sicomat.modelfile import save_model
-from sicomat.plant import Plant
+from sicomat.io.modelfile import save_model
+from sicomat.lti.plant import Plant
 from sicomat.reduction import (balanced_truncation, error_metrics, frequency_grid, frequency_limited_truncation,
                                frequency_response, hankel_norm_approximation, hankel_singular_values,
-                               modal_truncation, physical_reduction, reduce_command, reduced_machine,
+                               modal_truncation, physical_reduction, reduced_machine,
                                schur_truncation, spectral_split, technological_dofs)
 from sicomat.reduction.balanced import band_gramian_operator
+from sicomat.tasks.reduce import reduce_command
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 TWO_PI = 2 * math.pi
@@ -512,7 +513,7 @@ def test_reduced_machine_moves_a_merged_tool():
     machine = load_model(EXAMPLES / "paper_5m4s.toml").model_copy()
     data = machine.model_dump(mode="json", exclude_none=True)
     data["axes"]["X"]["tool"] = "load"
-    from sicomat.model import Machine
+    from sicomat.description.machine import Machine
 
     machine = Machine.model_validate(data)
     res = physical_reduction(machine.axis().mechanics, order=4)
@@ -608,7 +609,7 @@ def test_reduce_command_json_contract(method, order, keep, band):
 # --------------------------------------------------------------------------- the transfer that is reduced
 def _f_meca_of_5m4s() -> float:
     """The 80.6 Hz mode the tuning is built on, from the modal analysis of the full mechanics."""
-    from sicomat.modal import modal_analysis
+    from sicomat.mechanics.modal import modal_analysis
 
     modes = modal_analysis(build_mechanics(paper_5m4s().axis().mechanics))
     assert_allclose(modes.f_meca_hz, 80.6, rtol=1e-3)
@@ -672,7 +673,7 @@ def test_unknown_signals_are_model_errors_listing_the_signals(inputs, outputs, o
 
 
 def test_default_transfer_without_a_controller_takes_the_position_sensors():
-    from sicomat.reduction.cli_support import default_transfer
+    from sicomat.tasks.reduce import default_transfer
 
     machine = sicomat_machine({"axes": {"X": {"mechanics": {
         "type": "lumped", "bodies": {"a": {"mass": 1.0}, "b": {"mass": 2.0}},
@@ -696,7 +697,7 @@ def test_reduce_without_options_keeps_the_modes_below_twice_the_velocity_nyquist
     from typer.testing import CliRunner
 
     from sicomat.cli.main import app
-    from sicomat.modal import modal_analysis
+    from sicomat.mechanics.modal import modal_analysis
 
     result = CliRunner().invoke(app, ["reduce", str(EXAMPLES / "paper_5m4s.toml"), "--json"])
     assert result.exit_code == 0, result.output

@@ -1,4 +1,4 @@
-"""sicomat.stability (the verdict from the closed loop's poles) and sicomat.simulate.checks (what a run
+"""sicomat.servo.stability (the verdict from the closed loop's poles) and sicomat.simulation.checks (what a run
 says: divergence, limit cycles, final error), against closed forms, python-control and the kernel."""
 
 from __future__ import annotations
@@ -13,14 +13,13 @@ import scipy.optimize
 from accuracy import eigenvalue_accuracy
 
 import sicomat
-from sicomat.loop import build_servo_loop, servo_plant
-from sicomat.looptf import LoopAnalysis
-from sicomat.setpoints import step_profile, trapezoid_profile
-from sicomat.simulate import simulate
-from sicomat.simulate.checks import (FINAL_ERROR_BAND, final_error_warning, limit_cycle_warning,
-                                     simulation_verdict)
-from sicomat.stability import Verdict, combine, loop_poles, loop_verdict, margins_warnings
-from sicomat.timeseries import TimeSeries
+from sicomat.servo.loop import build_servo_loop, servo_plant
+from sicomat.frequency.loops import LoopAnalysis
+from sicomat.motion.setpoints import step_profile, trapezoid_profile
+from sicomat.simulation import simulate
+from sicomat.simulation.checks import (FINAL_ERROR_BAND, final_error_warning, limit_cycle_warning, simulation_verdict)
+from sicomat.servo.stability import Verdict, combine, loop_poles, loop_verdict, margins_warnings
+from sicomat.simulation.timeseries import TimeSeries
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -81,7 +80,7 @@ def test_sampled_velocity_loop_boundary_against_python_control():
 def test_verdict_agrees_with_the_linear_simulation(kp_factor, diverges):
     """The compiled kernel (another code path: the hybrid program, not the closed-loop matrix) diverges
     exactly when the poles say unstable: the 5M4S with Kp x1000 grows at 9.5e3 1/s, 1e9 in 2 ms."""
-    from sicomat.simulate.kernel import SimulationDiverged
+    from sicomat.simulation.kernel import SimulationDiverged
 
     loop = _loop("paper_5m4s.toml")
     loop = loop.with_gains(Kp=kp_factor * loop.Kp)
@@ -114,7 +113,7 @@ def test_rigid_body_pole_of_the_velocity_loop_is_marginal_not_unstable():
 
 
 def test_margins_warnings_reconcile_with_the_poles():
-    from sicomat.margins import stability_margins
+    from sicomat.frequency.margins import stability_margins
 
     loop = _loop("paper_5m4s.toml", "axes.X.controller.velocity_delay=0", "axes.X.controller.velocity_loop=continuous")
     margins = stability_margins(LoopAnalysis.of(loop).response("velocity-open"))
@@ -200,7 +199,7 @@ def test_final_error_threshold_is_two_percent_of_the_move_or_ten_counts():
 
 
 def test_circle_with_an_unstable_axis_gives_no_figures():
-    from sicomat.multiaxis import circle_test
+    from sicomat.simulation.paths import circle_test
 
     machine = sicomat.load_model(EXAMPLES / "xy_table.toml", ["axes.X.controller.Kp_normalized=15080"])
     test = circle_test(machine, 0.05, 2.0 / 60, clockwise=False)

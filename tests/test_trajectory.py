@@ -1,4 +1,4 @@
-"""sicomat.trajectory: the time-optimal S-curve against closed forms, an LP peer, and its limits."""
+"""sicomat.motion.trajectory: the time-optimal S-curve against closed forms, an LP peer, and its limits."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 from numpy.testing import assert_allclose
 
 from sicomat.errors import ModelError
-from sicomat.trajectory import JerkProfile, scurve_profile, scurve_sequence
+from sicomat.motion.trajectory import JerkProfile, scurve_profile, scurve_sequence
 
 
 def closed_form_time(d, v, a, j):

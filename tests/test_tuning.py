@@ -11,9 +11,9 @@ import pytest
 
 import sicomat
 from sicomat.errors import AnalysisError, ModelError
-from sicomat.loop import build_servo_loop, servo_plant
-from sicomat.tuning import TuningTargets, equivalent_delay, rigid_position_gain, rigid_velocity_pi, tune_frequency
-from sicomat.tuning_time import tune_time
+from sicomat.servo.loop import build_servo_loop, servo_plant
+from sicomat.tuning.frequency import (TuningTargets, equivalent_delay, rigid_position_gain, rigid_velocity_pi, tune_frequency)
+from sicomat.tuning.time import tune_time
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -98,8 +98,8 @@ def test_tuned_velocity_loop_remeasured_with_python_control(paper_loop, table_on
 
 
 def test_tuned_loop_is_stable_in_simulation(paper_loop, table_one):
-    from sicomat.setpoints import step_profile
-    from sicomat.simulate import simulate
+    from sicomat.motion.setpoints import step_profile
+    from sicomat.simulation import simulate
 
     loop = table_one.tuned_loop()
     series = simulate(loop, step_profile(1e-4), 0.4, nonlinear=False)

@@ -1,4 +1,4 @@
-"""sicomat.units.parse_quantity: unit strings to SI floats, and its errors."""
+"""sicomat.description.units.parse_quantity: unit strings to SI floats, and its errors."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import pytest
 from numpy.testing import assert_allclose
 
-from sicomat.units import UNITS, Unit, parse_quantity
+from sicomat.description.units import UNITS, Unit, parse_quantity
 
 ANGULAR_SPEED = Unit("rad/s", "an angular speed (rad/s)")
 
@@ -165,7 +165,7 @@ FAST_CASES = [("250 kg", "mass"), ("9 ms", "time"), ("10 mm/rev", "radius"), ("8
 
 @pytest.mark.parametrize("text, kind", FAST_CASES)
 def test_cached_unit_factor_matches_a_full_pint_parse(text, kind):
-    from sicomat.units import _parse_with_pint
+    from sicomat.description.units import _parse_with_pint
 
     unit = UNITS[kind]
     try:
@@ -189,7 +189,7 @@ def test_cached_path_keeps_the_full_error_messages(text, kind, fragment):
 
 
 def test_offset_units_are_not_taken_as_factors():
-    from sicomat.units import _unit_factor
+    from sicomat.description.units import _unit_factor
 
     kelvin = Unit("K", "a temperature (K)")
     assert _unit_factor("degC", "K") is None        # 1 degC is not 1 K times a factor

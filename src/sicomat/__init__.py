@@ -1,23 +1,89 @@
-"""SICOMAT: SImulation and COntrol analysis of MAchine Tool axes."""
+"""SICOMAT: SImulation and COntrol analysis of MAchine Tool axes.
 
-from .errors import AnalysisError, ModelError, ResourceError, SicomatError
-from .mechanics import Dof, Mechanics, build_mechanics
-from .modal import ModalResult, Mode, modal_analysis
-from .model import (Actuator, Axis, BeltRackSpec, Body, ChainSpec, Coupling, Friction, LumpedSpec,
-                    Machine, Sensor)
-from .modelfile import dump_model, load_model, machine_from_dict, save_model, with_overrides
-from .margins import Margins, closed_loop, sensitivity, stability_margins
-from .plant import Plant, mechanics_plant
+The pipeline's verbs and results, stage by stage (``docs/architecture.md``)::
+
+    machine = sicomat.load_model("examples/paper_5m4s.toml")        # description + io
+    mech = sicomat.build_mechanics(machine.axis().mechanics)         # mechanics
+    modes = sicomat.modal_analysis(mech)
+    loop = sicomat.build_servo_loop(machine.axis())                  # servo
+    run = sicomat.simulate(loop, sicomat.step_profile(1e-3), 0.1)    # simulation
+    margins = sicomat.stability_margins(sicomat.LoopAnalysis(loop).frequency_response("velocity-open"))
+
+Names are imported on first use (PEP 562), so ``import sicomat`` stays light (no numba, no scipy until
+asked) and the command line starts fast; each stage's subpackage re-exports its own public names.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "SicomatError", "ModelError", "AnalysisError", "ResourceError",
-    "Machine", "Axis", "LumpedSpec", "ChainSpec", "BeltRackSpec", "Body", "Coupling", "Friction",
-    "Actuator", "Sensor",
-    "load_model", "save_model", "dump_model", "machine_from_dict", "with_overrides",
-    "Mechanics", "Dof", "build_mechanics",
-    "Plant", "mechanics_plant",
-    "ModalResult", "Mode", "modal_analysis",
-    "Margins", "stability_margins", "closed_loop", "sensitivity",
-]
+# public name -> subpackage that defines it
+_EXPORTS: dict[str, str] = {
+    # errors
+    "SicomatError": "errors", "ModelError": "errors", "AnalysisError": "errors", "ResourceError": "errors",
+    "OutputError": "errors",
+    # description
+    "Machine": "description", "Axis": "description", "LumpedSpec": "description", "ChainSpec": "description",
+    "BeltRackSpec": "description", "Body": "description", "Coupling": "description", "Friction": "description",
+    "Actuator": "description", "Sensor": "description", "DriveSpec": "description",
+    "ControllerSpec": "description",
+    # io
+    "load_model": "io", "save_model": "io", "dump_model": "io", "machine_from_dict": "io",
+    "with_overrides": "io",
+    # lti
+    "Plant": "lti", "FrequencyResponse": "lti",
+    # mechanics
+    "Mechanics": "mechanics", "Dof": "mechanics", "build_mechanics": "mechanics", "mechanics_plant": "mechanics",
+    "ModalResult": "mechanics", "Mode": "mechanics", "modal_analysis": "mechanics",
+    # motion
+    "Profile": "motion", "step_profile": "motion", "ramp_profile": "motion", "trapezoid_profile": "motion",
+    "scurve_profile": "motion", "profile_from_spec": "motion",
+    # servo
+    "ServoLoop": "servo", "build_servo_loop": "servo", "Verdict": "servo", "loop_verdict": "servo",
+    # simulation
+    "simulate": "simulation", "simulate_batch": "simulation", "TimeSeries": "simulation", "StepMetrics": "simulation",
+    "simulate_path": "simulation", "circle_test": "simulation", "PathRun": "simulation", "CircleTest": "simulation",
+    # frequency
+    "LoopAnalysis": "frequency", "Margins": "frequency",
+    "stability_margins": "frequency", "closed_loop": "frequency", "sensitivity": "frequency",
+    "closed_loop_bandwidth": "frequency",
+    # tuning
+    "tune_frequency": "tuning", "tune_time": "tuning", "TuningResult": "tuning", "TimeTuningResult": "tuning",
+    "TuningTargets": "tuning", "TimeTargets": "tuning",
+    # reduction
+    "ReductionResult": "reduction", "modal_truncation": "reduction",
+    "balanced_truncation": "reduction", "physical_reduction": "reduction",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        package = _EXPORTS[name]
+    except KeyError:
+        raise AttributeError(f"module 'sicomat' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{package}", __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))
+
+
+if TYPE_CHECKING:  # the static view of the same names (mypy, IDEs)
+    from .description import (Actuator, Axis, BeltRackSpec, Body, ChainSpec, ControllerSpec, Coupling, DriveSpec, Friction, LumpedSpec, Machine, Sensor)
+    from .errors import AnalysisError, ModelError, OutputError, ResourceError, SicomatError
+    from .frequency import (LoopAnalysis, Margins, closed_loop, closed_loop_bandwidth, sensitivity, stability_margins)
+    from .io import dump_model, load_model, machine_from_dict, save_model, with_overrides
+    from .lti import FrequencyResponse, Plant
+    from .mechanics import Dof, Mechanics, ModalResult, Mode, build_mechanics, mechanics_plant, modal_analysis
+    from .motion import (Profile, profile_from_spec, ramp_profile, scurve_profile, step_profile, trapezoid_profile)
+    from .reduction import ReductionResult, balanced_truncation, modal_truncation, physical_reduction
+    from .servo import ServoLoop, Verdict, build_servo_loop, loop_verdict
+    from .simulation import (CircleTest, PathRun, StepMetrics, TimeSeries, circle_test, simulate, simulate_batch, simulate_path)
+    from .tuning import TimeTargets, TimeTuningResult, TuningResult, TuningTargets, tune_frequency, tune_time

@@ -52,7 +52,7 @@ def number(*, gt: float | None = None, ge: float | None = None, lt: float | None
         option = param.opts[0] if param.opts else str(param.name)
         if not math.isfinite(value):
             problem = "expected a finite number" + (f" {bounds}" if bounds else "")
-        elif value != 0 and not 1e-100 <= abs(value) <= 1e100:   # as sicomat.units.MAGNITUDES
+        elif value != 0 and not 1e-100 <= abs(value) <= 1e100:   # as sicomat.description.units.MAGNITUDES
             problem = "expected a magnitude from 1e-100 to 1e100 (products of three values must stay finite)"
         elif (gt is not None and not value > gt) or (ge is not None and not value >= ge) or \
                 (lt is not None and not value < lt) or (le is not None and not value <= le):
@@ -138,7 +138,7 @@ def exit_for(payload: dict[str, Any]) -> None:
 
 def load(model: Path, overrides: Optional[List[str]]):
     """Load a model file with its ``--set`` overrides."""
-    from ..modelfile import load_model
+    from ..io.modelfile import load_model
 
     return load_model(model, overrides or [])
 

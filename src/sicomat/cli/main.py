@@ -7,8 +7,7 @@ from typing import List, Optional
 
 import typer
 
-from ._common import (AxisOption, JsonOption, OneLineErrors, PlotOption, SetOption, emit_json, exit_for, guarded,
-                      load, number)
+from ._common import (AxisOption, JsonOption, OneLineErrors, PlotOption, SetOption, emit_json, exit_for, guarded, load, number)
 from .progress import progress_bar
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, cls=OneLineErrors,
@@ -36,7 +35,7 @@ def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
           json_: bool = JsonOption) -> None:
     """Validate a model file and summarise its axes, dofs and couplings."""
     with guarded(model):
-        from ..conditioning import check_axis_mechanics
+        from ..mechanics.conditioning import check_axis_mechanics
         from .tables import check_payload, print_check
 
         machine = load(model, set_)
@@ -54,9 +53,9 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
           plot: Optional[Path] = PlotOption) -> None:
     """Natural frequencies, damping ratios and mode shapes of an axis's mechanics."""
     with guarded(model):
-        from ..atomic import check_outputs
-        from ..conditioning import check_axis_mechanics
-        from ..modal import modal_analysis
+        from ..io.atomic import check_outputs
+        from ..mechanics.conditioning import check_axis_mechanics
+        from ..mechanics.modal import modal_analysis
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
@@ -64,7 +63,7 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         with progress_bar() as progress:
             result = modal_analysis(check_axis_mechanics(name, machine.axes[name].mechanics), progress=progress)
         if plot is not None:
-            from ..plotting import save_figure
+            from ..plots.base import save_figure
 
             save_figure(result.plot(), plot)
         if json_:
@@ -106,27 +105,27 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
              plot: Optional[Path] = PlotOption) -> None:
     """Simulate the closed servo loop of an axis (hybrid, multi-rate, exact between samples)."""
     with guarded(model):
-        from ..loop import build_servo_loop
-        from ..simulate import simulate as run_simulation
-        from ..atomic import check_outputs
-        from .simulate_cmd import check_magnification, choose_profile, simulate_payload
+        from ..servo.loop import build_servo_loop
+        from ..simulation import simulate as run_simulation
+        from ..io.atomic import check_outputs
+        from ..tasks.simulate import check_magnification, choose_profile, simulate_payload
 
         check_magnification(magnification)
         check_outputs({"--out": (out, "csv"), "--plot": (plot, "figure")},
                       {"the model file": model, "the G-code file (--gcode)": gcode})
         machine = load(model, set_)
         if gcode is not None:
-            from .simulate_cmd import simulate_gcode
+            from ..tasks.simulate import simulate_gcode
 
             with progress_bar() as progress:
                 payload, run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear,
                                               progress=progress)
             if run is not None and out is not None:
-                from ..timeseries import write_frame_csv
+                from ..io.csv import write_frame_csv
 
                 write_frame_csv(run.to_pandas(), out)
             if run is not None and plot is not None:
-                from ..plotting import save_figure
+                from ..plots.base import save_figure
 
                 save_figure(run.plot(magnification), plot)
             if json_:
@@ -139,9 +138,9 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                 print_verdict(payload, "axes")
             exit_for(payload)
             return
-        from ..simulate.checks import diverged_verdict, simulation_verdict
-        from ..simulate.kernel import SimulationDiverged
-        from .simulate_cmd import diverged_payload
+        from ..simulation.checks import diverged_verdict, simulation_verdict
+        from ..simulation.kernel import SimulationDiverged
+        from ..tasks.simulate import diverged_payload
 
         loop = build_servo_loop(machine, axis)
         profile, default_duration = choose_profile(machine.axes[loop.axis].trajectory, step, move,
@@ -151,7 +150,7 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                 series = run_simulation(loop, profile, duration if duration is not None else default_duration,
                                         nonlinear=not linear, progress=progress)
         except SimulationDiverged as exc:
-            from ..simulate import simulation_notes
+            from ..simulation import simulation_notes
 
             verdict = diverged_verdict(loop, exc)
             if out is not None or plot is not None:
@@ -161,7 +160,7 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             if out is not None:
                 series.to_csv(out)
             if plot is not None:
-                from ..plotting import save_figure
+                from ..plots.base import save_figure
 
                 save_figure(series.plot(), plot)
             payload = simulate_payload(series, simulation_verdict(loop, series, profile))
@@ -184,10 +183,10 @@ def bode(model: Path = ModelArgument,
          set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
     """Frequency response of a loop, with the digital effects exact (Bode or Nichols)."""
     with guarded(model):
-        from ..loop import build_servo_loop
-        from ..looptf import LoopAnalysis, default_omega
-        from ..atomic import check_outputs
-        from .analysis_cmd import bode_payload
+        from ..servo.loop import build_servo_loop
+        from ..frequency.loops import LoopAnalysis, default_omega
+        from ..io.atomic import check_outputs
+        from ..tasks.analysis import bode_payload
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
@@ -196,15 +195,15 @@ def bode(model: Path = ModelArgument,
         frf = an.response(loop, default_omega(servo, loop, points) if loop in _LOOP_NAMES else None)
         margins = None
         if frf.open_loop:
-            from ..margins import stability_margins
+            from ..frequency.margins import stability_margins
 
             margins = stability_margins(frf)
-        from .analysis_cmd import response_verdict, verdict_subject
+        from ..tasks.analysis import response_verdict, verdict_subject
 
         verdict = response_verdict(servo, an, loop, margins)
         if plot is not None:
-            from ..freqplot import bode_figure, nichols_figure
-            from ..plotting import save_figure
+            from ..plots.frequency import bode_figure, nichols_figure
+            from ..plots.base import save_figure
 
             figure = nichols_figure([frf], margins=margins) if nichols else bode_figure([frf], margins=margins)
             save_figure(figure, plot)
@@ -225,10 +224,10 @@ def margins(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             set_: Optional[List[str]] = SetOption, json_: bool = JsonOption) -> None:
     """Stability margins of the velocity and position loops (all crossovers; the worst reported)."""
     with guarded(model):
-        from ..loop import build_servo_loop
-        from ..looptf import LoopAnalysis
-        from ..margins import stability_margins
-        from .analysis_cmd import margins_payload
+        from ..servo.loop import build_servo_loop
+        from ..frequency.loops import LoopAnalysis
+        from ..frequency.margins import stability_margins
+        from ..tasks.analysis import margins_payload
 
         machine = load(model, set_)
         servo = build_servo_loop(machine, axis)
@@ -269,20 +268,20 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
     """Tune the cascade controller: frequency approach (margins, bandwidth) or time approach (steps)."""
     with guarded(model):
         from ..errors import ModelError
-        from ..loop import build_servo_loop
-        from .analysis_cmd import write_tuned
+        from ..servo.loop import build_servo_loop
+        from ..tasks.analysis import write_tuned
 
         if method not in ("frequency", "time"):
             raise ModelError("expected 'frequency' or 'time'", source="--method", value=method)
         if position_phase_margin is not None and position_crossover is not None:
             raise ModelError("give either --position-phase-margin or --position-crossover", source="options")
-        from ..atomic import check_outputs
+        from ..io.atomic import check_outputs
 
         check_outputs({"--write": (write, "model")}, {"the model file": model})
         machine = load(model, set_)
         servo = build_servo_loop(machine, axis)
         if method == "time":
-            from ..tuning_time import TimeTargets, tune_time
+            from ..tuning.time import TimeTargets, tune_time
 
             with progress_bar() as progress:
                 result = tune_time(servo, TimeTargets(min_gain_margin=min_gain_margin), progress=progress)
@@ -290,7 +289,7 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             gains = {"Kp": result.Kp, "Kp_normalized": result.Kp_normalized, "Ti": result.Ti, "Kv": result.Kv}
             notch = None
         else:
-            from ..tuning import TuningTargets, tune_frequency
+            from ..tuning.frequency import TuningTargets, tune_frequency
 
             targets = TuningTargets(velocity_crossover=velocity_crossover,
                                     velocity_phase_margin=velocity_phase_margin,
@@ -340,11 +339,11 @@ def circle(model: Path = ModelArgument,
     servo mismatch."""
     with guarded(model):
         from ..errors import ModelError
-        from ..multiaxis import circle_test
+        from ..simulation.paths import circle_test
 
         if feedforward is not None and feedforward not in ("on", "off"):
             raise ModelError("expected 'on' or 'off'", source="--feedforward", value=feedforward)
-        from ..atomic import check_outputs
+        from ..io.atomic import check_outputs
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
@@ -354,7 +353,7 @@ def circle(model: Path = ModelArgument,
         payload = test.to_dict()
         if plot is not None:
             if test.circle is not None:
-                from ..plotting import save_figure
+                from ..plots.base import save_figure
 
                 save_figure(test.plot(magnification), plot)
             else:
@@ -393,24 +392,24 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
     """Reduce an axis's model: modal truncation, balanced (Gramian) truncation, physical regrouping."""
     with guarded(model):
         from ..errors import ModelError
-        from ..reduction.cli_support import METHODS, reduce_command
+        from ..tasks.reduce import METHODS, reduce_command
 
         if method not in METHODS:
             raise ModelError(f"expected one of {', '.join(METHODS)}", source="--method", value=method)
         if write is not None and method != "physical":
             raise ModelError("only the physical method gives a model file; the others give a state space",
                              source="--write", value=str(write))
-        from ..atomic import check_outputs
+        from ..io.atomic import check_outputs
 
         check_outputs({"--write": (write, "model"), "--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         result = reduce_command(machine, axis, method, order, keep, band, inputs, outputs)
         if write is not None:
-            from ..reduction.cli_support import write_reduced
+            from ..tasks.reduce import write_reduced
 
             write_reduced(result, write, based_on=model, axis=machine.axis_name(axis))
         if plot is not None:
-            from ..plotting import save_figure
+            from ..plots.base import save_figure
 
             save_figure(result.plot(), plot)
         payload = result.to_dict()
@@ -441,13 +440,13 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
     the manual, step-by-step form of the time approach (paper III.B.3)."""
     with guarded(model):
         from ..errors import ModelError
-        from ..loop import build_servo_loop
-        from ..looptf import LoopAnalysis
-        from ..tuning_time import position_step, velocity_step
+        from ..servo.loop import build_servo_loop
+        from ..frequency.loops import LoopAnalysis
+        from ..tuning.time import position_step, velocity_step
 
         if loop not in ("velocity", "position"):
             raise ModelError("expected 'velocity' or 'position'", source="--loop", value=loop)
-        from ..atomic import check_outputs
+        from ..io.atomic import check_outputs
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         servo = build_servo_loop(load(model, set_), axis)
@@ -456,14 +455,14 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         Ti = servo.Ti if ti is None else ti
         Kv = servo.Kv if kv is None else kv
         response = velocity_step(an, Kp, Ti, duration) if loop == "velocity" else position_step(an, Kp, Ti, Kv, duration)
-        from ..stability import loop_verdict
+        from ..servo.stability import loop_verdict
 
         verdict = loop_verdict(servo, Kp=Kp, Ti=Ti, Kv=Kv, an=an,
                                loops=("velocity",) if loop == "velocity" else ("velocity", "position"))
         payload = {"axis": servo.axis, "loop": loop, "Kp": Kp, "Kp_normalized": Kp / servo.m_rigid, "Kp_si": Kp,
                    "Ti": Ti, "Kv": Kv, **response.to_dict(), **verdict.to_dict()}
         if plot is not None:
-            from ..plotting import plot_step, save_figure
+            from ..plots.base import plot_step, save_figure
 
             save_figure(plot_step(response, f"{loop} loop step response"), plot)
         if json_:

@@ -5,9 +5,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..mechanics import Mechanics
-    from ..modal import ModalResult
-    from ..model import Machine
+    from ..mechanics.lumped import Mechanics
+    from ..mechanics.modal import ModalResult
+    from ..description.machine import Machine
 
 from .layout import print_table
 

@@ -1,16 +1,13 @@
 """Model reduction (paper III.C): modal truncation, balanced (Gramian) reduction, physical regrouping.
 
-Each reductor takes the model it reduces (a :class:`~sicomat.plant.Plant`, or a mechanics
+Each reductor takes the model it reduces (a :class:`~sicomat.lti.plant.Plant`, or a mechanics
 description for the physical method) and returns a :class:`ReductionResult`: the reduced model (a
 ``Plant``; for the physical method also a ``Mechanics`` and a ``LumpedSpec`` for a model file) and
 what it cost (frequency errors on a pole-aware grid, Hankel singular values, error bound).
 """
 
-from .balanced import (band_gramian_operator, balanced_truncation, frequency_limited_truncation,
-                       hankel_norm_approximation, hankel_singular_values, schur_truncation)
-from .cli_support import reduce_command
-from .error import (ErrorMetrics, ReductionResult, error_metrics, frequency_grid, frequency_response,
-                    natural_frequencies_hz)
+from .balanced import (band_gramian_operator, balanced_truncation, frequency_limited_truncation, hankel_norm_approximation, hankel_singular_values, schur_truncation)
+from .error import (ErrorMetrics, ReductionResult, error_metrics, frequency_grid, frequency_response, natural_frequencies_hz)
 from .modal import SpectralSplit, modal_truncation, spectral_split
 from .physical import physical_reduction, reduced_machine, technological_dofs
 
@@ -21,5 +18,4 @@ __all__ = [
     "balanced_truncation", "schur_truncation", "frequency_limited_truncation", "hankel_norm_approximation",
     "hankel_singular_values", "band_gramian_operator",
     "physical_reduction", "technological_dofs", "reduced_machine",
-    "reduce_command",
 ]

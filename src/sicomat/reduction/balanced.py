@@ -32,9 +32,8 @@ import scipy.linalg
 from scipy.linalg import lapack
 
 from ..errors import AnalysisError, ModelError
-from ..plant import Plant
-from .modal import (RIGID_TOL, SpectralSplit, StateBlock, check_order, schur_eigenvalues, schur_triplet,
-                    select_positions, spectral_split, split_block)
+from ..lti.plant import Plant
+from .modal import (RIGID_TOL, SpectralSplit, StateBlock, check_order, schur_eigenvalues, schur_triplet, select_positions, spectral_split, split_block)
 
 if TYPE_CHECKING:  # pragma: no cover
     from .error import ReductionResult
@@ -125,7 +124,7 @@ def hankel_singular_values(plant: Plant, *, rigid_tol: float = RIGID_TOL, inputs
 
     Examples
     --------
-    >>> from sicomat.plant import Plant
+    >>> from sicomat.lti.plant import Plant
     >>> G = Plant([[-1.0]], [[1.0]], [[1.0]], [[0.0]], ("x",), ("u",), ("y",))  # 1/(s+1)
     >>> hankel_singular_values(G).round(12).tolist()
     [0.5]
@@ -433,7 +432,7 @@ def balanced_truncation(plant: Plant, order: int, *, match_dc: bool = False,
 
     Examples
     --------
-    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.description import ChainSpec
     >>> from sicomat.mechanics import build_mechanics
     >>> plant = build_mechanics(ChainSpec(type="chain", masses=[1, 1, 1], stiffnesses=[1e4, 1e4],
     ...                                   dampings=[5, 5], ground_stiffness=1e4)).state_space()

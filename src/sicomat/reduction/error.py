@@ -18,13 +18,14 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import ModelError
-from ..plant import Plant
+from ..lti.plant import Plant
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-    from ..mechanics import Mechanics
-    from ..model import LumpedSpec, Machine
+    from ..mechanics.lumped import Mechanics
+    from ..description.mechanics import LumpedSpec
+    from ..description.machine import Machine
 
 __all__ = ["ErrorMetrics", "ReductionResult", "error_metrics", "frequency_grid", "frequency_response",
            "natural_frequencies_hz", "check_band", "select_transfer"]
@@ -73,7 +74,7 @@ def select_transfer(plant: Plant, inputs: Sequence[str] | str | None = None,
 
     Examples
     --------
-    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.description import ChainSpec
     >>> from sicomat.mechanics import build_mechanics
     >>> plant = build_mechanics(ChainSpec(type="chain", masses=[1, 1], stiffnesses=[100])).state_space()
     >>> select_transfer(plant, outputs=["last"]).outputs
@@ -171,7 +172,7 @@ def frequency_response(plant: Plant, omega: np.ndarray, *, rigid_tol: float | No
 
     Examples
     --------
-    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.description import ChainSpec
     >>> from sicomat.mechanics import build_mechanics
     >>> plant = build_mechanics(ChainSpec(type="chain", masses=[2.0])).state_space()
     >>> complex(frequency_response(plant, [10.0])[0, 0, 0].round(12))  # 1 / (m (j10)²)
@@ -367,7 +368,7 @@ def error_metrics(full: Plant, reduced: Plant, *, band_hz: tuple[float, float] |
 
     Examples
     --------
-    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.description import ChainSpec
     >>> from sicomat.mechanics import build_mechanics
     >>> plant = build_mechanics(ChainSpec(type="chain", masses=[1, 1], stiffnesses=[100],
     ...                                   dampings=[0.1])).state_space()
@@ -456,8 +457,8 @@ class ReductionResult:
     mechanics, spec : Mechanics, LumpedSpec or None
         The reduced lumped model (physical method).
     machine : Machine or None
-        The machine with the reduced axis, ready for :func:`sicomat.modelfile.save_model`
-        (physical method through :func:`~sicomat.reduction.cli_support.reduce_command`).
+        The machine with the reduced axis, ready for :func:`sicomat.io.modelfile.save_model`
+        (physical method through :func:`~sicomat.tasks.reduce.reduce_command`).
     notes : tuple of str
         Things the user should know (the transfer chosen by default, a friction dropped, ...).
     warnings : tuple of str

@@ -17,7 +17,7 @@ import scipy.linalg
 from scipy.linalg import lapack
 
 from ..errors import AnalysisError, ModelError
-from ..plant import Plant
+from ..lti.plant import Plant
 
 if TYPE_CHECKING:  # pragma: no cover
     from .error import ReductionResult
@@ -205,7 +205,7 @@ def spectral_split(plant: Plant, *, rigid_tol: float = RIGID_TOL, marginal: bool
 
     Examples
     --------
-    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.description import ChainSpec
     >>> from sicomat.mechanics import build_mechanics
     >>> plant = build_mechanics(ChainSpec(type="chain", masses=[1, 1], stiffnesses=[100],
     ...                                   dampings=[0.1])).state_space()
@@ -342,7 +342,7 @@ def modal_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] |
 
     Examples
     --------
-    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.description import ChainSpec
     >>> from sicomat.mechanics import build_mechanics
     >>> plant = build_mechanics(ChainSpec(type="chain", masses=[1, 1, 1], stiffnesses=[1e4, 1e4],
     ...                                   dampings=[1, 1])).state_space()

@@ -12,7 +12,7 @@ mass goes to the kept bodies in proportion to how it follows them statically (th
 of it to a body it is rigidly tied to), reflected through the ratios so that the kinetic energy of
 the rigid-body motion — the total moving mass — is unchanged. Dampers follow the same projection,
 frictions (viscous and Coulomb) are mapped element by element. The result is a new
-:class:`~sicomat.model.LumpedSpec`: physical parameters, the same actuator and sensor names, ready
+:class:`~sicomat.description.mechanics.LumpedSpec`: physical parameters, the same actuator and sensor names, ready
 to be saved in a model file with :func:`reduced_machine`.
 """
 
@@ -25,11 +25,11 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import ModelError
-from ..mechanics import Mechanics, build_mechanics
-from ..model import GROUND, LumpedSpec
+from ..mechanics.lumped import Mechanics, build_mechanics
+from ..description.mechanics import GROUND, LumpedSpec
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..model import Machine, MechanicsSpec
+    from ..description.machine import Machine, MechanicsSpec
     from .error import ReductionResult
 
 __all__ = ["physical_reduction", "technological_dofs", "reduced_machine"]
@@ -46,7 +46,7 @@ def technological_dofs(spec: "MechanicsSpec", tool: str | None = None) -> tuple[
 
     Examples
     --------
-    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.description import ChainSpec
     >>> technological_dofs(ChainSpec(type="chain", masses=[1, 1, 1, 1], stiffnesses=[1, 1, 1]))
     ('m1', 'm4')
     """
@@ -354,7 +354,7 @@ def physical_reduction(spec: "MechanicsSpec", keep: Iterable[str] | None = None,
     Returns
     -------
     ReductionResult
-        ``spec`` (the new :class:`~sicomat.model.LumpedSpec`), ``mechanics``, ``kept`` and
+        ``spec`` (the new :class:`~sicomat.description.mechanics.LumpedSpec`), ``mechanics``, ``kept`` and
         ``merged_into``; the plants are the mechanics' state spaces from ``inputs`` to
         ``outputs`` (same actuator and sensor names).
 
@@ -366,7 +366,7 @@ def physical_reduction(spec: "MechanicsSpec", keep: Iterable[str] | None = None,
 
     Examples
     --------
-    >>> from sicomat.model import ChainSpec
+    >>> from sicomat.description import ChainSpec
     >>> chain = ChainSpec(type="chain", masses=[1, 2, 3], stiffnesses=[1e9, 1e3])
     >>> res = physical_reduction(chain, keep=["m1", "m3"])
     >>> round(res.spec.bodies["m1"].mass, 4), round(res.spec.bodies["m3"].mass, 4)  # m2 rides on m1
@@ -584,12 +584,12 @@ def reduced_machine(machine: "Machine", axis: str | None, spec: LumpedSpec, *,
 
     Built with ``model_copy(update=...)`` on the axis and the machine, then validated like a model
     file (drive, controller and tool references must still resolve), so it can be written with
-    :func:`sicomat.modelfile.save_model`. An axis ``tool`` that was merged is moved to the body it
+    :func:`sicomat.io.modelfile.save_model`. An axis ``tool`` that was merged is moved to the body it
     was merged into (``merged_into``, as in :attr:`ReductionResult.merged_into`).
 
     Examples
     --------
-    >>> from sicomat.model import Machine
+    >>> from sicomat.description import Machine
     >>> machine = Machine(axes={"X": {"mechanics": {"type": "chain", "masses": [1, 1, 1],
     ...                                             "stiffnesses": [1e6, 1e3]}}})
     >>> res = physical_reduction(machine.axis("X").mechanics, keep=["m2", "m3"])
@@ -598,7 +598,7 @@ def reduced_machine(machine: "Machine", axis: str | None, spec: LumpedSpec, *,
     """
     from pydantic import ValidationError
 
-    from ..model import Machine
+    from ..description.machine import Machine
 
     name = machine.axis_name(axis)
     old = machine.axes[name]

@@ -1,0 +1,89 @@
+"""The machine: named axes, each with its mechanics (any kind of :data:`MechanicsSpec`), drive,
+controller and trajectory, and the cross-checks between an axis's blocks."""
+
+from __future__ import annotations
+
+from typing import Annotated, Union
+
+from pydantic import Field, model_validator
+
+from .base import Name, Spec, fail
+from .mechanics import LumpedSpec
+from .motion import InterpolatorSpec, SetpointSpec
+from .servo import ControllerSpec, DriveSpec
+from .shorthands import BeltRackSpec, ChainSpec
+from ..errors import ModelError
+
+__all__ = ["MechanicsSpec", "Axis", "Machine"]
+
+
+MechanicsSpec = Annotated[Union[LumpedSpec, ChainSpec, BeltRackSpec], Field(discriminator="type")]
+
+
+# --------------------------------------------------------------------------- machine
+class Axis(Spec):
+    """One feed axis: its mechanics and, for the servo loop, its drive, controller and trajectory.
+
+    ``tool`` names the body whose position is the axis coordinate (the load or tool point) used
+    for the following error and to convert every feedback sensor into axis units; by default, the
+    body of the controller's position sensor.
+    """
+
+    mechanics: MechanicsSpec
+    drive: DriveSpec | None = None
+    controller: ControllerSpec | None = None
+    trajectory: SetpointSpec | None = None
+    tool: Name | None = None
+
+    @model_validator(mode="after")
+    def _references(self) -> "Axis":
+        lumped = self.mechanics.to_lumped()
+        bodies, sensors, actuators = lumped.bodies, lumped.sensors, lumped.actuators
+        if self.tool is not None and self.tool not in bodies:
+            raise fail("unknown body {value}; expected one of {known}", "tool", self.tool,
+                       known=", ".join(bodies))
+        if self.drive is not None:
+            if self.drive.actuator is not None and self.drive.actuator not in actuators:
+                raise fail("unknown actuator {value}; expected one of {known}", "drive.actuator",
+                           self.drive.actuator, known=", ".join(actuators) or "(none: add one to the mechanics)")
+            if not actuators:
+                raise fail("the mechanics has no actuator for the drive to command; add one under "
+                           "mechanics.actuators", "drive", None)
+            if self.drive.actuator is None and len(actuators) != 1:
+                raise fail("the mechanics has {count} actuators; name the driven one in 'actuator'",
+                           "drive.actuator", None, count=len(actuators))
+        if self.controller is not None:
+            c = self.controller
+            for key in ("position_sensor", "velocity_sensor"):
+                name = getattr(c, key)
+                if name is not None and name not in sensors:
+                    raise fail("unknown sensor {value}; expected one of {known}", f"controller.{key}", name,
+                               known=", ".join(sensors) or "(none: add one to the mechanics)")
+            if sensors[c.position_sensor].kind != "position":
+                raise fail("the position loop needs a position sensor", "controller.position_sensor",
+                           c.position_sensor)
+            if self.drive is None:
+                raise fail("a controller needs a drive to command; add [axes.<name>.drive]", "drive", None)
+        return self
+
+
+class Machine(Spec):
+    """A machine: a name and one or more named axes (the first is the default axis)."""
+
+    name: str = ""
+    description: str = ""
+    axes: dict[Name, Axis] = Field(min_length=1)
+    interpolator: InterpolatorSpec = Field(default_factory=InterpolatorSpec)
+
+    def axis(self, name: str | None = None) -> Axis:
+        """The axis called ``name``, or the first axis."""
+        if name is None:
+            return next(iter(self.axes.values()))
+        if name not in self.axes:
+            raise ModelError(f"unknown axis {name!r}; expected one of {', '.join(self.axes)}", path="axes")
+        return self.axes[name]
+
+    def axis_name(self, name: str | None = None) -> str:
+        """The name of the axis ``name`` resolves to (the first axis when ``None``)."""
+        self.axis(name)
+        return name if name is not None else next(iter(self.axes))

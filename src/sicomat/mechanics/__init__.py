@@ -1,0 +1,24 @@
+"""Lumped mechanics (stage 2): M, D, K from the description, the state space of the mechanics,
+modal analysis and the numerical-meaning checks."""
+
+from .conditioning import check_numeric_range, check_resolvable, check_axis_mechanics, COEFFICIENT_RANGE
+from .lumped import Dof, Link, Load, Measurement, Mechanics, build_mechanics
+from .modal import Mode, ModalResult, modal_analysis
+from .statespace import mechanics_plant
+
+__all__ = [
+    "check_numeric_range",
+    "check_resolvable",
+    "check_axis_mechanics",
+    "COEFFICIENT_RANGE",
+    "Dof",
+    "Link",
+    "Load",
+    "Measurement",
+    "Mechanics",
+    "build_mechanics",
+    "Mode",
+    "ModalResult",
+    "modal_analysis",
+    "mechanics_plant",
+]

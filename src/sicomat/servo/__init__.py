@@ -1,0 +1,34 @@
+"""The servo blocks and the loop (stage 3): drive, discrete controller blocks, analog loops, the
+servo loop and its lowering, the stability verdict."""
+
+from .analog import AnalogLoop, analog_loop
+from .controller import DiscreteSS, velocity_law, filter_block, difference_block, continuous_filter
+from .drive import DriveModel, drive_model
+from .loop import ServoLoop, build_servo_loop, servo_plant, servo_program, SetpointTable, derived_signals
+from .stability import (GROWTH_TOLERANCE, LoopPoles, Verdict, position_closed_loop, loop_poles, loop_verdict, margins_warnings, combine)
+
+__all__ = [
+    "AnalogLoop",
+    "analog_loop",
+    "DiscreteSS",
+    "velocity_law",
+    "filter_block",
+    "difference_block",
+    "continuous_filter",
+    "DriveModel",
+    "drive_model",
+    "ServoLoop",
+    "build_servo_loop",
+    "servo_plant",
+    "servo_program",
+    "SetpointTable",
+    "derived_signals",
+    "GROWTH_TOLERANCE",
+    "LoopPoles",
+    "Verdict",
+    "position_closed_loop",
+    "loop_poles",
+    "loop_verdict",
+    "margins_warnings",
+    "combine",
+]

@@ -1,0 +1,237 @@
+"""Simulation of servo loops: setpoints sampled, the loop lowered to a hybrid program, the kernel run."""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from ..errors import ModelError
+from ..progress import notify
+from .timeseries import TimeSeries, step_metrics
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..servo.loop import ServoLoop
+    from ..progress import ProgressCallback
+    from ..motion.setpoints import Profile
+
+__all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs"]
+
+
+def loop_program(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True):
+    """The hybrid program of ``loop`` following ``profile`` for ``duration`` seconds, and its step count."""
+    programs, n_steps = loop_programs([loop], profile, duration, nonlinear=nonlinear)
+    return programs[0], n_steps
+
+
+def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
+                  nonlinear: bool = True, recorded: int | None = None) -> tuple[list, int]:
+    """:func:`loop_program` for variants of one loop: the setpoints are sampled once for all.
+
+    The loops must share their velocity and position periods (the setpoint table's timing).
+    ``recorded``: values kept per base step by the run that follows (default: every signal of one
+    loop, as :func:`simulate` keeps them), for the memory estimate made before anything is
+    allocated (:func:`sicomat.budget.require_memory`).
+    """
+    from ..servo.loop import SetpointTable, servo_program
+
+    if not loops:
+        raise ModelError("no servo loop to simulate")
+    first = loops[0]
+    h = first.base_period
+    Np = first.position_ratio
+    for v, loop in enumerate(loops):
+        if loop.base_period != h or loop.position_ratio != Np:
+            raise ModelError(f"variant {v}: the loop periods differ from variant 0's "
+                             f"({loop.base_period:g} s / {loop.position_ratio} against {h:g} s / {Np})",
+                             path=f"axes.{loop.axis}.controller")
+    try:
+        duration = float(duration)
+    except (TypeError, ValueError):
+        duration = math.nan
+    if not (math.isfinite(duration) and duration > 0):
+        raise ModelError("the duration must be a finite number of seconds > 0", path="duration", value=duration)
+    n_steps = int(math.floor(duration / h + 1e-9))
+    if n_steps < 2:
+        raise ModelError(f"the duration {duration:g} s is shorter than two velocity-loop periods ({h:g} s)",
+                         path="duration", value=duration)
+    for loop in loops:
+        ctrl = loop.controller
+        for key, delay in (("position_delay", ctrl.position_delay * ctrl.position_period),
+                           ("velocity_delay", ctrl.velocity_delay * ctrl.velocity_period),
+                           ("feedforward_delay", ctrl.feedforward_delay)):
+            if delay >= duration:
+                raise ModelError(f"the delay ({delay:g} s) is not shorter than the run ({duration:g} s)",
+                                 path=f"axes.{loop.axis}.controller.{key}", value=getattr(ctrl, key))
+    n_pos = -(-n_steps // Np)
+    per_step = recorded if recorded is not None else _values_per_step(first, profile, nonlinear)
+    delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in loops)
+    _require_memory(n_steps, per_step, n_pos, delayed)
+    t_pos = np.arange(n_pos) * Np * h
+    table = SetpointTable(*profile.evaluate(t_pos))
+    return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
+
+
+def _values_per_step(loop: "ServoLoop", profile: "Profile", nonlinear: bool) -> int:
+    """Values one run of ``loop`` keeps per base step: the recorded slots, the continuous states and
+    each friction link's force and stuck flag (the program of a one-sample table tells them)."""
+    from ..servo.loop import SetpointTable, servo_program
+
+    program = servo_program(loop, SetpointTable(*profile.evaluate(np.zeros(1))), nonlinear=nonlinear)
+    return len(program.record) + program.continuous.A.shape[0] + 2 * program.continuous.G.shape[0]
+
+
+def _require_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -> None:
+    """Refuse a run whose arrays cannot fit: the kernel's records (``per_step`` values of 8 bytes per
+    step), as much again for the named and derived signals and the metrics computed from them, the
+    setpoint table (time, position, velocity, acceleration and the kernel's 3 columns) and the ring
+    buffers of the computation delays (``delayed`` samples)."""
+    from ..budget import require_memory
+
+    nbytes = 8.0 * (2.0 * n_steps * per_step + 7.0 * n_pos + delayed)
+    require_memory(nbytes, "this simulation", f"{n_steps} steps x {per_step} values x 8 bytes, twice, "
+                                              f"and the setpoint table")
+
+
+def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True,
+             progress: "ProgressCallback | None" = None) -> TimeSeries:
+    """Simulate the closed loop following a setpoint profile.
+
+    Parameters
+    ----------
+    loop : ServoLoop
+        From :func:`sicomat.servo.loop.build_servo_loop`.
+    profile : Profile
+        Setpoint (see :mod:`sicomat.motion.setpoints`).
+    duration : float
+        Simulated time (s); the step is the velocity-loop period.
+    nonlinear : bool
+        ``False`` drops limits, quantizers and Coulomb friction (the linear loop).
+    progress : callable, optional
+        Told the phases (:mod:`sicomat.progress`): loading (or, the first time, compiling) the
+        kernel, the steps (reported when the compiled run, one call, returns), the signals.
+
+    Returns
+    -------
+    TimeSeries
+        Every named signal at every base step, with :class:`~sicomat.simulation.timeseries.StepMetrics` and
+        ``info["wall_time_s"]`` (the kernel's run time, without the one-time compilation or cache
+        load of the compiled kernel, which a two-step warm-up run absorbs).
+
+    Raises
+    ------
+    SimulationDiverged
+        The loop is unstable: the message gives the time at which the states blew up.
+    ResourceError
+        The run's arrays would exceed the memory limit (:mod:`sicomat.budget`); estimated first.
+    """
+    from .kernel import run
+
+    program, n_steps = loop_program(loop, profile, duration, nonlinear=nonlinear)
+    notify(progress, "loading the simulation kernel (compiled on first use)", 0, None)
+    run(program, 2)  # loads (or compiles) the kernel, so that only the simulation itself is timed
+    task = f"simulating axis {loop.axis}: {n_steps} steps"
+    notify(progress, task, 0, n_steps)
+    start = _time.perf_counter()
+    result = run(program, n_steps)
+    wall = _time.perf_counter() - start
+    notify(progress, task, n_steps, n_steps)
+    signals = named_signals(loop, program, result.records, profile.evaluate(result.time)[0], result.states)
+    actual = signals["setpoint.fine"] - signals["following_error"]
+    metrics = step_metrics(result.time, signals["setpoint.fine"], actual, profile.distance, start=profile.breaks[0])
+    return TimeSeries(time=result.time, signals=signals, metrics=metrics,
+                      info={"wall_time_s": wall, "samples": n_steps, "step": loop.base_period,
+                            "axis": loop.axis, "notes": simulation_notes(loop, nonlinear),
+                            "effort_unit": effort_unit(loop)})
+
+
+def effort_unit(loop: "ServoLoop") -> str:
+    """The unit of the drive's effort: ``"N"`` for a force actuator, ``"N·m"`` for a torque one."""
+    return "N" if loop.mechanics.actuator(loop.actuator).kind == "translational" else "N·m"
+
+
+def simulation_notes(loop: "ServoLoop", nonlinear: bool = True) -> list[str]:
+    """What the simulation of ``loop`` leaves out although the model file gives it."""
+    drv, ctrl = loop.drive, loop.controller
+    notes = []
+    if nonlinear and ctrl.velocity_loop == "continuous" and (np.isfinite(drv.i_peak) or np.isfinite(drv.u_max)):
+        notes.append("the velocity loop is continuous: the drive's current and voltage limits (and the "
+                     "anti-windup) act inside it and are not simulated; the loop is linear up to the plant's "
+                     "friction")
+    return notes
+
+
+
+def named_signals(loop: "ServoLoop", program, records: np.ndarray, fine_setpoint: np.ndarray,
+                  states: np.ndarray) -> dict[str, np.ndarray]:
+    """Every signal of a run by name: the recorded slots, their aliases and the derived signals."""
+    from ..servo.loop import derived_signals
+
+    signals = {name: records[:, i] for i, name in enumerate(program.slot_names)}
+    for name, index in program.aliases.items():
+        signals[name] = records[:, index]
+    derived = derived_signals(loop, signals, fine_setpoint, states)
+    return {**signals, **{name: value for name, value in derived.items() if name not in signals}}
+
+
+@dataclass(frozen=True, eq=False)
+class BatchMetrics:
+    """Figures of each variant of a batch (arrays over the variants, metres) and their run time.
+
+    ``diverged`` flags the variants whose simulation blew up (their figures are NaN).
+    """
+
+    max_following_error: np.ndarray
+    rms_following_error: np.ndarray
+    final_error: np.ndarray
+    diverged: np.ndarray
+    wall_time_s: float
+
+    def to_pandas(self):
+        """One row per variant."""
+        import pandas as pd
+
+        return pd.DataFrame({"max_following_error": self.max_following_error,
+                             "rms_following_error": self.rms_following_error,
+                             "final_error": self.final_error, "diverged": self.diverged})
+
+
+def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
+                   nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> BatchMetrics:
+    """Simulate many variants of one loop (other gains, masses, stiffnesses, limits, ...) in one
+    compiled call and return each variant's following-error figures.
+
+    The variants must share the loop's structure (same blocks, sample periods, delays, filters
+    and friction links); only numbers may differ. Only the following error is recorded.
+    With ``progress`` (:mod:`sicomat.progress`) the variants run in about twenty compiled calls
+    instead of one, each reported when it returns (the figures are the same: variants are independent).
+    """
+    from .kernel import run_batch
+
+    # the kernel's record and the following error computed from it: 2 values per variant and step
+    programs, n_steps = loop_programs(loops, profile, duration, nonlinear=nonlinear, recorded=2 * len(loops))
+    sensors = [f"sensor.{loop.controller.position_sensor}" for loop in loops]
+    if len(set(sensors)) != 1:
+        raise ModelError("the variants of a batch must share their position sensor", path="controller.position_sensor")
+    chunk = len(programs) if progress is None else max(1, -(-len(programs) // 20))
+    task = f"simulating {len(programs)} variants: {n_steps} steps each"
+    notify(progress, task, 0, len(programs))
+    start = _time.perf_counter()
+    parts = []
+    for first in range(0, len(programs), chunk):
+        parts.append(run_batch(programs[first: first + chunk], n_steps, record=[sensors[0]], on_divergence="flag"))
+        notify(progress, task, min(first + chunk, len(programs)), len(programs))
+    wall = _time.perf_counter() - start
+    result = parts[0]
+    records = np.concatenate([p.records for p in parts]) if len(parts) > 1 else result.records
+    fine = profile.evaluate(result.time)[0]
+    gains = np.array([loop.position_gain for loop in loops])
+    error = fine[None, :] - records[:, :, 0] / gains[:, None]
+    bad = np.concatenate([p.diverged for p in parts]) if len(parts) > 1 else result.diverged
+    with np.errstate(invalid="ignore"):
+        figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]
+    figures = [np.where(bad, np.nan, f) for f in figures]
+    return BatchMetrics(*figures, diverged=bad, wall_time_s=wall)

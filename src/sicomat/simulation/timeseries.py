@@ -1,0 +1,118 @@
+"""Time-series results of simulations: named signals, metrics, pandas/CSV export and plots."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas
+
+__all__ = ["TimeSeries", "StepMetrics", "step_metrics"]
+
+
+@dataclass(frozen=True)
+class StepMetrics:
+    """Figures of merit of a positioning move (metres and seconds, SI)."""
+
+    max_following_error: float
+    rms_following_error: float
+    final_error: float
+    overshoot_percent: float
+    rise_time: float | None
+    settling_time: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping."""
+        return dict(self.__dict__)
+
+
+def step_metrics(time: np.ndarray, setpoint: np.ndarray, actual: np.ndarray, distance: float,
+                 start: float = 0.0, band: float = 0.02) -> StepMetrics:
+    """Following error and step-response figures.
+
+    ``setpoint`` and ``actual`` are the desired and measured axis positions at ``time``; ``distance``
+    the commanded displacement (0 for moves that do not end, e.g. ramps: no overshoot, rise or
+    settling). Rise time is 10 %→90 % of ``distance``; settling time the time after ``start`` from
+    which ``actual`` stays within ``band``·|distance| of the final setpoint.
+    """
+    error = setpoint - actual
+    metrics = dict(max_following_error=float(np.max(np.abs(error))),
+                   rms_following_error=float(np.sqrt(np.mean(error ** 2))),
+                   final_error=float(error[-1]), overshoot_percent=0.0, rise_time=None, settling_time=None)
+    if distance != 0:
+        sign = np.sign(distance)
+        target = setpoint[-1]
+        progress = sign * actual / abs(distance)
+        metrics["overshoot_percent"] = float(max(0.0, np.max(sign * (actual - target)) / abs(distance) * 100))
+        t10 = _first_crossing(time, progress, 0.1)
+        t90 = _first_crossing(time, progress, 0.9)
+        if t10 is not None and t90 is not None:
+            metrics["rise_time"] = float(t90 - t10)
+        outside = np.flatnonzero(np.abs(actual - target) > band * abs(distance))
+        if outside.size == 0:
+            metrics["settling_time"] = 0.0
+        elif outside[-1] < len(time) - 1:
+            metrics["settling_time"] = float(time[outside[-1] + 1] - start)
+    return StepMetrics(**metrics)
+
+
+def _first_crossing(time: np.ndarray, values: np.ndarray, level: float) -> float | None:
+    above = np.flatnonzero(values >= level)
+    if above.size == 0:
+        return None
+    i = above[0]
+    if i == 0:
+        return float(time[0])
+    t0, t1, v0, v1 = time[i - 1], time[i], values[i - 1], values[i]
+    return float(t0 + (level - v0) / (v1 - v0) * (t1 - t0)) if v1 != v0 else float(t1)
+
+
+@dataclass(frozen=True, eq=False)
+class TimeSeries:
+    """Signals sampled at the simulator's base step, by name (SI units), with the run's metrics.
+
+    Signal names: ``setpoint.position`` / ``.velocity`` / ``.acceleration`` (as the position loop
+    samples them), ``setpoint.fine`` (at the base step), ``position.measured``, ``position.error``,
+    ``following_error``, ``tool_error``, ``velocity.command``, ``velocity.measured``,
+    ``velocity.error``, ``velocity.integral`` (the PI's integral action, N or N·m),
+    ``current.command`` / ``.applied`` / ``.lower`` / ``.upper``, ``effort.command``,
+    ``drive.current``, ``drive.effort``, ``tool.position``, every dof's ``<body>.x`` / ``<body>.v``
+    (or ``.theta`` / ``.omega``), ``sensor.<name>``, ``friction.<name>``.
+    """
+
+    time: np.ndarray
+    signals: dict[str, np.ndarray]
+    metrics: StepMetrics | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.signals[name]
+
+    @property
+    def names(self) -> list[str]:
+        """Signal names, in recording order."""
+        return list(self.signals)
+
+    def to_pandas(self) -> "pandas.DataFrame":
+        """A DataFrame indexed by time (s), one column per signal."""
+        import pandas as pd
+
+        frame = pd.DataFrame(self.signals, index=pd.Index(self.time, name="time"))
+        return frame
+
+    def to_csv(self, path: str | os.PathLike) -> Path:
+        """Write the signals as CSV (atomically: temporary file, then rename)."""
+        from ..io.csv import write_frame_csv
+
+        return write_frame_csv(self.to_pandas(), path)
+
+    def plot(self, signals: list[str] | None = None):
+        """Setpoint and position, following error, and effort against time; returns the Figure."""
+        from ..plots.base import plot_timeseries
+
+        return plot_timeseries(self, signals)
