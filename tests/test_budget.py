@@ -41,7 +41,7 @@ def test_the_python_api_is_protected_too(monkeypatch):
     monkeypatch.delenv("SICOMAT_MAX_MEMORY", raising=False)
     from sicomat import load_model
     from sicomat.servo.loop import build_servo_loop
-    from sicomat.motion.path import Line, Path as ToolPath, interpolate
+    from sicomat.motion import Line, Path as ToolPath, interpolate
     from sicomat.motion.setpoints import step_profile
     from sicomat.simulation import simulate
 

@@ -14,7 +14,7 @@ from scipy import signal
 
 from sicomat.motion.circle import evaluate_circle, least_squares_circle
 from sicomat.errors import ModelError
-from sicomat.motion.path import circle_test_path, interpolate
+from sicomat.motion import circle_test_path, interpolate
 from sicomat.plots.base import save_figure
 
 R = 0.05

@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 from sicomat.motion.contour import contour_error
 from sicomat.errors import ModelError
 from sicomat.motion.gcode import parse_gcode
-from sicomat.motion.path import Arc, Line, Path, circle_test_path, interpolate
+from sicomat.motion import Arc, Line, Path, circle_test_path, interpolate
 
 PROGRAM = """G90 G17 G01 X0 Y0 F3000
 X40

@@ -9,7 +9,7 @@ from numpy.testing import assert_allclose
 
 from sicomat.errors import ModelError
 from sicomat.motion.gcode import GCodeError, parse_gcode
-from sicomat.motion.path import Arc, Line
+from sicomat.motion import Arc, Line
 
 PROGRAM = """%
 (circle test, R 50 mm)

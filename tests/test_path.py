@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 from numpy.testing import assert_allclose
 
 from sicomat.errors import ModelError
-from sicomat.motion.path import Arc, Line, Path, circle_test_path, interpolate
+from sicomat.motion import Arc, Line, Path, circle_test_path, interpolate
 
 R = 0.05
 A, J, PERIOD = 2.0, 40.0, 1e-3

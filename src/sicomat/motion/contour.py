@@ -95,7 +95,7 @@ def contour_error(path: Path, actual: np.ndarray, s_hint: np.ndarray | None = No
 
     Examples
     --------
-    >>> from sicomat.motion.path import Line, Path
+    >>> from sicomat.motion import Line, Path
     >>> p = Path([Line((0.0, 0.0), (1.0, 0.0))])
     >>> contour_error(p, [[0.5, 0.001], [2.0, 0.0]]).round(6).tolist()
     [0.001, 1.0]

@@ -11,7 +11,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
     from ..motion.circle import CircleResult
-    from ..motion.path import PathSamples
+    from ..motion import PathSamples
     from ..motion.trajectory import JerkProfile
 
 __all__ = ["plot_circle", "plot_path_samples", "plot_jerk_profile"]

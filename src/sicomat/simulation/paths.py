@@ -20,7 +20,7 @@ from ..servo.stability import Verdict, combine
 if TYPE_CHECKING:  # pragma: no cover
     from ..motion.circle import CircleResult
     from ..description.machine import Machine
-    from ..motion.path import Path, PathSamples
+    from ..motion import Path, PathSamples
     from ..progress import ProgressCallback
     from .timeseries import TimeSeries
 
@@ -249,7 +249,7 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
         Follows the axes' simulations (:mod:`sicomat.progress`).
     """
     from ..motion.circle import evaluate_circle
-    from ..motion.path import circle_test_path, interpolate
+    from ..motion import circle_test_path, interpolate
 
     if not radius > 0:
         raise ModelError("the radius must be > 0", source="--radius", value=radius)

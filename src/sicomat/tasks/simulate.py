@@ -79,7 +79,7 @@ def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlin
 
     from ..motion.gcode import parse_gcode
     from ..simulation.paths import axis_for, simulate_path
-    from ..motion.path import interpolate
+    from ..motion import interpolate
 
     if step_mm is not None or move_mm is not None:
         raise ModelError("--gcode cannot be combined with --step or --move", source="options")
