@@ -12,6 +12,7 @@ from typing import Any, Literal
 from pydantic import Field, model_validator
 
 from .base import Inertia, Mass, Name, Spec, fail
+from .registry import register
 from .units import UNITS, parse_quantity
 
 __all__ = [
@@ -135,6 +136,7 @@ def _ratio_unit(body_kind: str, stretch: str) -> str:
     return "radius" if body_kind == "rotational" else "inverse_radius"
 
 
+@register("mechanics")
 class LumpedSpec(Spec):
     """The general lumped model: named bodies, couplings, frictions, actuators and sensors.
 

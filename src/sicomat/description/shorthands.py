@@ -9,10 +9,12 @@ from pydantic import Field, model_validator
 
 from .base import (Inertia, Length, LinearDamping, LinearStiffness, Mass, Name, NonNegativeInertia, NonNegativeMass, Spec, TorsionalDamping, fail, quantity)
 from .mechanics import LumpedSpec
+from .registry import register
 
 __all__ = ["ChainSpec", "BeltRackSpec", "chain_to_lumped", "belt_rack_to_lumped", "belt_rack_equivalents"]
 
 
+@register("mechanics")
 class ChainSpec(Spec):
     """An n-mass / (n−1)-spring chain (nMmS) of translational bodies, driven on its first body.
 
@@ -46,6 +48,7 @@ class ChainSpec(Spec):
         return chain_to_lumped(self)
 
 
+@register("mechanics")
 class BeltRackSpec(Spec):
     """The paper's Fig. 3 axis (2M1S): motor, belt with two wheels, gearwheel and rack, load.
 
