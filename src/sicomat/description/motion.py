@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Annotated, Literal
 
-from pydantic import Field
+from pydantic import ConfigDict, Field
 
 from .base import NonNegativeTime, Spec, quantity
 from .registry import SetpointKind, register, spec_union
@@ -17,6 +17,9 @@ __all__ = ["StepSetpoint", "RampSetpoint", "TrapezoidSetpoint", "SCurveSetpoint"
 class StepSetpoint(Spec):
     """A position step of ``distance`` at ``start`` (s)."""
 
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"type": "step", "distance": "2 mm", "start": "10 ms"}, {"type": "step", "distance": -0.5}]})
+
     type: Literal["step"]
     distance: Annotated[float, quantity("length")]
     start: NonNegativeTime = 0.0
@@ -26,6 +29,9 @@ class StepSetpoint(Spec):
 class RampSetpoint(Spec):
     """A constant-velocity ramp starting at ``start`` (position grows at ``velocity``)."""
 
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"type": "ramp", "velocity": "3 m/min", "start": "4 ms"}]})
+
     type: Literal["ramp"]
     velocity: Annotated[float, quantity("velocity")]
     start: NonNegativeTime = 0.0
@@ -34,6 +40,11 @@ class RampSetpoint(Spec):
 @register("setpoint")
 class TrapezoidSetpoint(Spec):
     """A point-to-point move with a trapezoidal velocity profile (acceleration-limited)."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"type": "trapezoid", "distance": "100 mm", "max_velocity": "1 m/s", "max_acceleration": "5 m/s^2"},
+        {"type": "trapezoid", "distance": "-1 mm", "max_velocity": "1 m/s", "max_acceleration": "5 m/s^2",
+         "start": "5 ms"}]})  # the second is triangular (v_max not reached)
 
     type: Literal["trapezoid"]
     distance: Annotated[float, quantity("length")]
@@ -45,6 +56,12 @@ class TrapezoidSetpoint(Spec):
 @register("setpoint")
 class SCurveSetpoint(Spec):
     """A jerk-limited (7-segment S-curve), time-optimal point-to-point move."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"type": "s-curve", "distance": "50 mm", "max_velocity": "0.2 m/s", "max_acceleration": "3 m/s^2",
+         "max_jerk": "100 m/s^3", "start": "2 ms"},
+        {"type": "s-curve", "distance": "-0.2 mm", "max_velocity": "0.2 m/s", "max_acceleration": "3 m/s^2",
+         "max_jerk": "100 m/s^3"}]})  # the second reaches neither limit
 
     type: Literal["s-curve"]
     distance: Annotated[float, quantity("length")]

@@ -101,9 +101,6 @@ def register(kind: str, type_name: str | None = None) -> Callable[[T], T]:
         name = _literal_type(cls)
         if name is None or (type_name is not None and name != type_name):
             raise ValueError(f"{cls.__name__} needs a field type: Literal[{type_name or '...'!r}]")
-        if kind in _SEALED:
-            raise ValueError(f"the {kind} union is already built; register {cls.__name__} in a module "
-                             "imported before it (see sicomat.description.registry)")
         if name in _TYPES[kind]:
             raise ValueError(f"{kind} type {name!r} is already registered by {_TYPES[kind][name].__name__}")
         protocol = KINDS[kind][1]
@@ -111,6 +108,9 @@ def register(kind: str, type_name: str | None = None) -> Callable[[T], T]:
                    if callable(v) and not m.startswith("_") and not callable(getattr(cls, m, None))]
         if missing:
             raise ValueError(f"{cls.__name__} lacks {', '.join(missing)}() of the {kind} protocol")
+        if kind in _SEALED:
+            raise ValueError(f"the {kind} union is already built; register {cls.__name__} in a module "
+                             "imported before it (see sicomat.description.registry)")
         _TYPES[kind][name] = cls
         return cls
 
