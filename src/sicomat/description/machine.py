@@ -3,21 +3,26 @@ controller and trajectory, and the cross-checks between an axis's blocks."""
 
 from __future__ import annotations
 
-from typing import Annotated, Union
+from typing import TYPE_CHECKING
 
 from pydantic import Field, model_validator
 
 from .base import Name, Spec, fail
-from .mechanics import LumpedSpec
+from .registry import MechanicsKind, spec_union
 from .motion import InterpolatorSpec, SetpointSpec
 from .servo import ControllerSpec, DriveSpec
-from .shorthands import BeltRackSpec, ChainSpec
+from . import mechanics as _mechanics, shorthands as _shorthands  # noqa: F401  (register their types)
 from ..errors import ModelError
 
 __all__ = ["MechanicsSpec", "Axis", "Machine"]
 
 
-MechanicsSpec = Annotated[Union[LumpedSpec, ChainSpec, BeltRackSpec], Field(discriminator="type")]
+if TYPE_CHECKING:  # a type checker sees the protocol, pydantic the discriminated union
+    MechanicsSpec = MechanicsKind
+else:
+    MechanicsSpec = spec_union("mechanics")
+"""Any registered mechanical structure, chosen by ``type`` (lumped, chain, belt-rack): its classes are
+registered in ``mechanics.py`` and ``shorthands.py``; a module with a new type is imported above."""
 
 
 # --------------------------------------------------------------------------- machine

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
 from .base import Inertia, Mass, Name, Spec, fail
+from .registry import register
 from .units import UNITS, parse_quantity
 
 __all__ = [
@@ -135,6 +136,7 @@ def _ratio_unit(body_kind: str, stretch: str) -> str:
     return "radius" if body_kind == "rotational" else "inverse_radius"
 
 
+@register("mechanics")
 class LumpedSpec(Spec):
     """The general lumped model: named bodies, couplings, frictions, actuators and sensors.
 
@@ -145,6 +147,25 @@ class LumpedSpec(Spec):
     >>> spec.bodies["m"].mass
     2.0
     """
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"type": "lumped",
+         "bodies": {"motor": {"inertia": "23 kg*cm^2"}, "screw": {"inertia": "2.37e-3 kg*m^2"},
+                    "table": {"mass": "350 kg"}},
+         "couplings": {"coupling": {"between": ["motor", "screw"], "stiffness": "18000 N*m/rad"},
+                       "screw_nut": {"between": ["screw", "table"], "ratios": ["10 mm/rev", 1],
+                                     "stiffness": "1.8e8 N/m", "damping": "6000 N*s/m"}},
+         "frictions": {"guides": {"between": ["table", "ground"], "viscous": "300 N*s/m", "coulomb": "120 N"}},
+         "actuators": {"motor": {"body": "motor"}},
+         "sensors": {"encoder": {"body": "motor", "counts_per_revolution": 4096},
+                     "scale": {"body": "table", "resolution": "0.05 um"}}},
+        {"type": "lumped",   # two motors on one load (gantry), the load also held by a spring to the frame
+         "bodies": {"left": {"mass": 20}, "right": {"mass": 20}, "beam": {"mass": 100}},
+         "couplings": {"kl": {"between": ["left", "beam"], "stiffness": 1e7},
+                       "kr": {"between": ["beam", "right"], "stiffness": 1e7},
+                       "k0": {"between": ["beam", "ground"], "stiffness": 1e3}},
+         "actuators": {"ml": {"body": "left"}, "mr": {"body": "right", "reaction": "beam"}},
+         "sensors": {"gap": {"body": "left", "relative_to": "right"}}}]})
 
     type: Literal["lumped"] = "lumped"
     bodies: dict[Name, Body] = Field(min_length=1)

@@ -5,14 +5,16 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
 from .base import (Inertia, Length, LinearDamping, LinearStiffness, Mass, Name, NonNegativeInertia, NonNegativeMass, Spec, TorsionalDamping, fail, quantity)
 from .mechanics import LumpedSpec
+from .registry import register
 
 __all__ = ["ChainSpec", "BeltRackSpec", "chain_to_lumped", "belt_rack_to_lumped", "belt_rack_equivalents"]
 
 
+@register("mechanics")
 class ChainSpec(Spec):
     """An n-mass / (n−1)-spring chain (nMmS) of translational bodies, driven on its first body.
 
@@ -21,6 +23,11 @@ class ChainSpec(Spec):
     ``last`` read the positions of the end bodies. ``ground_stiffness`` optionally ties the
     first body to the ground; ``viscous`` adds viscous friction of each body to the ground.
     """
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"type": "chain", "masses": ["2 kg", 3, 1.5], "stiffnesses": ["1e6 N/m", 2e6], "dampings": [10, 20],
+         "viscous": [1, 0, 2]},
+        {"type": "chain", "masses": [5], "ground_stiffness": "1e4 N/m", "names": ["table"]}]})
 
     type: Literal["chain"]
     masses: list[Mass] = Field(min_length=1)
@@ -46,12 +53,19 @@ class ChainSpec(Spec):
         return chain_to_lumped(self)
 
 
+@register("mechanics")
 class BeltRackSpec(Spec):
     """The paper's Fig. 3 axis (2M1S): motor, belt with two wheels, gearwheel and rack, load.
 
     Parameters are the component values of Section II.C; :func:`sicomat.description.shorthands.belt_rack_to_lumped`
     computes the equivalents of eqs. (5)–(9). See ``docs/mechanics.md`` for the derivation.
     """
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"type": "belt-rack", "J_m": "1.2e-3 kg*m^2", "J_pm": "0.5e-3 kg*m^2", "R_pm": "30 mm", "m_c": "0.4 kg",
+         "J_pc": "4.0e-3 kg*m^2", "R_pc": "60 mm", "J_pig": "0.3e-3 kg*m^2", "R_pig": "25 mm", "m_cre": "6 kg",
+         "M_load": "180 kg", "k11eq": "2.5e7 N/m", "f11eq": "800 N*s/m", "mu11eq": "2e-4 N*m*s/rad",
+         "mu12eq": "150 N*s/m", "coulomb_motor": "0.05 N*m", "coulomb_load": "60 N"}]})
 
     type: Literal["belt-rack"]
     J_m: Inertia

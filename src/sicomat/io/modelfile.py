@@ -11,11 +11,12 @@ from pydantic import ValidationError
 
 from ..errors import ModelError
 from ..description.machine import Machine
+from ..description.registry import union_tags
 
 __all__ = ["load_model", "machine_from_dict", "save_model", "model_text", "dump_model", "parse_override",
            "with_overrides"]
 
-_UNION_TAGS = {"mechanics": {"lumped", "chain", "belt-rack"}, "trajectory": {"step", "ramp", "trapezoid", "s-curve"}}
+_UNION_TAGS = union_tags()  # key of a block table → its registered types (description/registry.py)
 
 
 def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machine:

@@ -11,7 +11,7 @@ from ..description.mechanics import GROUND, LumpedSpec, resolve_stretch
 
 if TYPE_CHECKING:  # pragma: no cover
     from .modal import ModalResult
-    from ..description.machine import MechanicsSpec
+    from ..description.registry import MechanicsKind
     from ..lti.plant import Plant
 
 __all__ = ["Dof", "Link", "Load", "Measurement", "Mechanics", "build_mechanics"]
@@ -173,8 +173,9 @@ class Mechanics:
         return modal_analysis(self)
 
 
-def build_mechanics(spec: "MechanicsSpec") -> Mechanics:
-    """Assemble M, D, K, actuators and sensors from a mechanics description.
+def build_mechanics(spec: "MechanicsKind") -> Mechanics:
+    """Assemble M, D, K, actuators and sensors from a mechanics description (any registered kind:
+    its ``to_lumped()`` is the one lowering, see :mod:`sicomat.description.registry`).
 
     Each coupling with stretch vector ``g`` (``g[a] = r_a``, ``g[b] = -r_b``) adds ``k g gᵀ`` to K
     and ``c g gᵀ`` to D; viscous friction adds to D the same way; an actuator on body ``a`` with

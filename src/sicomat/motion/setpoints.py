@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Callable, Union
 
 import numpy as np
 
 from ..description.motion import RampSetpoint, SCurveSetpoint, SetpointSpec, StepSetpoint, TrapezoidSetpoint
+from ..description.registry import registered_types
+from .trajectory import JerkProfile, scurve_profile
 
-__all__ = ["Profile", "profile_from_spec", "step_profile", "ramp_profile", "trapezoid_profile"]
+__all__ = ["Profile", "profile_from_spec", "lowers", "step_profile", "ramp_profile", "trapezoid_profile"]
 
 
 @dataclass(frozen=True)
@@ -92,16 +95,56 @@ def trapezoid_profile(distance: float, max_velocity: float, max_acceleration: fl
                    tuple(sign * x for x in acc), kind="trapezoid")
 
 
-def profile_from_spec(spec: SetpointSpec) -> Profile:
-    """The profile a model file's ``trajectory`` table describes."""
-    if isinstance(spec, StepSetpoint):
-        return step_profile(spec.distance, spec.start)
-    if isinstance(spec, RampSetpoint):
-        return ramp_profile(spec.velocity, spec.start)
-    if isinstance(spec, TrapezoidSetpoint):
-        return trapezoid_profile(spec.distance, spec.max_velocity, spec.max_acceleration, spec.start)
-    if isinstance(spec, SCurveSetpoint):
-        from .trajectory import scurve_profile
+# --------------------------------------------------------------------------- the one lowering
+AnyProfile = Union[Profile, JerkProfile]
+_LOWERINGS: dict[str, Callable[[Any], AnyProfile]] = {}
 
-        return scurve_profile(spec.distance, spec.max_velocity, spec.max_acceleration, spec.max_jerk, spec.start)
-    raise TypeError(f"unsupported setpoint {spec!r}")  # pragma: no cover
+
+def lowers(type_name: str) -> Callable[[Callable[[Any], AnyProfile]], Callable[[Any], AnyProfile]]:
+    """Decorator: the function lowers the setpoint ``type_name`` (registered in
+    :mod:`sicomat.description.motion`) to its profile."""
+    if type_name not in registered_types("setpoint"):
+        known = ", ".join(registered_types("setpoint"))
+        raise ValueError(f"no setpoint type {type_name!r} is registered; expected one of {known}")
+
+    def decorate(fn: Callable[[Any], AnyProfile]) -> Callable[[Any], AnyProfile]:
+        _LOWERINGS[type_name] = fn
+        return fn
+
+    return decorate
+
+
+def profile_from_spec(spec: SetpointSpec) -> AnyProfile:
+    """The profile a setpoint description (a model file's ``trajectory`` table) describes: the one
+    lowering of the setpoint generator, used by ``simulate`` (model trajectory, ``--step``, ``--move``).
+
+    Examples
+    --------
+    >>> profile_from_spec(StepSetpoint(type="step", distance=0.01, start=0.1)).breaks
+    (0.1,)
+    """
+    try:
+        lower = _LOWERINGS[spec.type]
+    except KeyError:
+        raise TypeError(f"setpoint type {spec.type!r} has no lowering in sicomat.motion.setpoints") from None
+    return lower(spec)
+
+
+@lowers("step")
+def _step(spec: StepSetpoint) -> Profile:
+    return step_profile(spec.distance, spec.start)
+
+
+@lowers("ramp")
+def _ramp(spec: RampSetpoint) -> Profile:
+    return ramp_profile(spec.velocity, spec.start)
+
+
+@lowers("trapezoid")
+def _trapezoid(spec: TrapezoidSetpoint) -> Profile:
+    return trapezoid_profile(spec.distance, spec.max_velocity, spec.max_acceleration, spec.start)
+
+
+@lowers("s-curve")
+def _scurve(spec: SCurveSetpoint) -> JerkProfile:
+    return scurve_profile(spec.distance, spec.max_velocity, spec.max_acceleration, spec.max_jerk, spec.start)

@@ -27,6 +27,7 @@ import scipy.linalg
 from ..errors import ModelError
 from ..mechanics.lumped import Mechanics, build_mechanics
 from ..description.mechanics import GROUND, LumpedSpec
+from ..description.registry import MechanicsKind, registered_types
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..description.machine import Machine, MechanicsSpec
@@ -376,9 +377,9 @@ def physical_reduction(spec: "MechanicsSpec", keep: Iterable[str] | None = None,
     from .modal import check_order
 
     band_hz = check_band(band_hz)
-    if isinstance(spec, Mechanics) or not hasattr(spec, "to_lumped"):
-        raise TypeError("physical_reduction takes a mechanics description (LumpedSpec, ChainSpec or "
-                        f"BeltRackSpec, e.g. axis.mechanics), not {type(spec).__name__}")
+    if isinstance(spec, Mechanics) or not isinstance(spec, MechanicsKind):
+        raise TypeError("physical_reduction takes a mechanics description (a registered type: "
+                        f"{', '.join(registered_types('mechanics'))}; e.g. axis.mechanics), not {type(spec).__name__}")
     lumped = spec.to_lumped()
     mech = build_mechanics(lumped)
     full = select_transfer(mech.state_space(), inputs, outputs)

@@ -18,19 +18,30 @@ MAX_GCODE_BYTES = 256 * 1024 ** 2  # a G-code program read whole: larger ones ar
 
 
 def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration):
-    """The setpoint profile and a default duration from the command-line options and the model."""
-    from ..description.motion import TrapezoidSetpoint
-    from ..motion.setpoints import profile_from_spec, step_profile, trapezoid_profile
+    """The setpoint profile and a default duration from the command-line options and the model.
+
+    ``--step`` and ``--move`` become setpoint descriptions (step, trapezoid) and every profile comes
+    from the one lowering, :func:`~sicomat.motion.setpoints.profile_from_spec`. ``--move`` takes its
+    limits from the options, else from the model's trajectory when it is a trapezoid, else the defaults.
+    The options were checked by the CLI (finite, magnitudes 1e-100 to 1e100, limits > 0), so the
+    descriptions are constructed without the model file's unit checks, which would refuse a step below
+    1e-100 m that the option accepts (``model_construct``: same numbers as before, nothing re-parsed).
+    """
+    from ..description.motion import StepSetpoint, TrapezoidSetpoint
+    from ..motion.setpoints import profile_from_spec
 
     if step_mm is not None and move_mm is not None:
         raise ModelError("give either --step or --move, not both", source="options")
     if step_mm is not None:
-        return step_profile(step_mm * 1e-3), 0.3
+        return profile_from_spec(StepSetpoint.model_construct(type="step", distance=step_mm * 1e-3)), 0.3
     if move_mm is not None:
         vmax, amax = DEFAULT_MAX_VELOCITY, DEFAULT_MAX_ACCELERATION
         if isinstance(trajectory, TrapezoidSetpoint):
             vmax, amax = trajectory.max_velocity, trajectory.max_acceleration
-        profile = trapezoid_profile(move_mm * 1e-3, max_velocity or vmax, max_acceleration or amax)
+        move = TrapezoidSetpoint.model_construct(type="trapezoid", distance=move_mm * 1e-3,
+                                                max_velocity=max_velocity or vmax,
+                                                max_acceleration=max_acceleration or amax)
+        profile = profile_from_spec(move)
         return profile, profile.end_time + 0.2
     if trajectory is None:
         raise ModelError("no setpoint: give --step MM or --move MM, or add a [axes.<name>.trajectory] table",
