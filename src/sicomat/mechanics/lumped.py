@@ -170,8 +170,8 @@ class Mechanics:
         >>> mech.lumped, mech.rigid_modes().shape, [c.name for c in mech.couplings]
         (False, (2, 1), ['K.1'])
         """
-        dofs = tuple(d if isinstance(d, Dof) else Dof(str(d), "translational") for d in dofs)
-        n = len(dofs)
+        dof_list = tuple(d if isinstance(d, Dof) else Dof(str(d), "translational") for d in dofs)
+        n = len(dof_list)
         matrices = {}
         for key, value in (("mass", mass), ("damping", damping), ("stiffness", stiffness)):
             a = np.asarray(value, dtype=float)
@@ -186,7 +186,7 @@ class Mechanics:
         K = matrices["stiffness"]
         scale = float(np.max(np.abs(K), initial=0.0))
         if couplings is None:
-            couplings = _stiffness_links(K, dofs)
+            couplings = _stiffness_links(K, dof_list)
         else:
             couplings = tuple(couplings)
             made = sum((link.stiffness * np.outer(link.g, link.g) for link in couplings), np.zeros((n, n)))
@@ -198,7 +198,7 @@ class Mechanics:
                 vector = item.g if isinstance(item, Link) else item.vector
                 if np.shape(vector) != (n,):
                     raise ModelError(f"expected a vector of length {n}", path=f"{group}.{item.name}")
-        return cls(dofs=dofs, mass=matrices["mass"], damping=matrices["damping"], stiffness=K,
+        return cls(dofs=dof_list, mass=matrices["mass"], damping=matrices["damping"], stiffness=K,
                    actuators=tuple(actuators), sensors=tuple(sensors), couplings=couplings,
                    frictions=tuple(frictions))
 
