@@ -16,7 +16,7 @@ range in :func:`~sicomat.mechanics.build_mechanics`, the poles in :func:`~sicoma
   soft poles themselves: the computed pole then carries no correct digit (its damping ratio can
   come out negative, its damped frequency 0 Hz). Such a model is refused. The bound is computed
   only when a cheap estimate says it may matter: ``ε·(ω²_max/ω²_min)`` over the springs' own
-  ``k·Σ g²/m`` above 1e-6 (the 5M4S: 1e-12).
+  ``k·gᵀM⁻¹g`` (``k·Σ g²/m`` for lumped bodies) above 1e-6 (the 5M4S: 1e-12).
 """
 
 from __future__ import annotations
@@ -62,8 +62,9 @@ def check_resolvable(mech: "Mechanics") -> None:
     springs = [link for link in mech.couplings if link.stiffness > 0]
     if len(springs) < 2:
         return
-    inverse_mass = 1.0 / np.diag(mech.mass)
-    local = np.array([link.stiffness * float(np.sum(link.g ** 2 * inverse_mass)) for link in springs])
+    G = np.array([link.g for link in springs])
+    inverse_mass_g = mech.mass_factor.solve(G.T).T         # rows M⁻¹ g (g / m for lumped bodies)
+    local = np.array([link.stiffness for link in springs]) * np.sum(G * inverse_mass_g, axis=1)   # k gᵀM⁻¹g
     stiff, soft = int(np.argmax(local)), int(np.argmin(local))
     if not EPS * local[stiff] / local[soft] > _RISK:
         return

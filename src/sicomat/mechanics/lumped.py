@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from functools import cached_property
+from typing import TYPE_CHECKING, Literal, Sequence
 
 import numpy as np
 
 from ..description.mechanics import GROUND, LumpedSpec, resolve_stretch
+from ..errors import ModelError
+from .statespace import MassFactor
 
 if TYPE_CHECKING:  # pragma: no cover
     from .modal import ModalResult
@@ -83,9 +86,12 @@ class Measurement:
 class Mechanics:
     """A lumped mechanical model ``M q̈ + D q̇ + K q = B_u u`` with named dofs (SI units).
 
-    Build it with :func:`build_mechanics`. Matrices are read-only ``(n, n)`` arrays in the order
-    of :attr:`dofs`. ``couplings`` and ``frictions`` keep the elements (for the simulator's Coulomb
-    friction and for physical model reduction).
+    Build it with :func:`build_mechanics` from a description, or with :meth:`from_matrices` from
+    matrices computed elsewhere (a full, symmetric positive definite M is allowed). Matrices are
+    read-only ``(n, n)`` arrays in the order of :attr:`dofs`. ``couplings`` and ``frictions`` keep
+    the elements (for the simulator's Coulomb friction and for physical model reduction); the
+    couplings explain the stiffness, ``K = Σ k g gᵀ`` (the rigid modes and the undamped modes are
+    computed from them).
     """
 
     dofs: tuple[Dof, ...]
@@ -112,6 +118,89 @@ class Mechanics:
     def dof_names(self) -> tuple[str, ...]:
         """Body names in dof order."""
         return tuple(d.name for d in self.dofs)
+
+    @cached_property
+    def mass_factor(self) -> MassFactor:
+        """The Cholesky factor of M (:class:`~sicomat.mechanics.statespace.MassFactor`), made once."""
+        return MassFactor(self.mass)
+
+    @property
+    def lumped(self) -> bool:
+        """True when M is diagonal (one mass or inertia per body, as every model file gives)."""
+        return self.mass_factor.diagonal
+
+    def lumped_masses(self, what: str) -> np.ndarray:
+        """The bodies' masses or inertias (M's diagonal) for a method ``what`` that is defined only
+        for a diagonal M; a :class:`~sicomat.errors.ModelError` naming ``what`` for a full M."""
+        if not self.lumped:
+            raise ModelError(f"{what} is defined for lumped bodies (a diagonal mass matrix); this "
+                             "mechanics has a full mass matrix", path="mass")
+        return np.diag(self.mass).copy()
+
+    @classmethod
+    def from_matrices(cls, dofs: Sequence[Dof | str], mass, damping, stiffness, *,
+                      actuators: Sequence[Load] = (), sensors: Sequence[Measurement] = (),
+                      couplings: Sequence[Link] | None = None, frictions: Sequence[Link] = ()) -> "Mechanics":
+        """A mechanics from matrices computed outside the model file (robotics, FE, ...).
+
+        Parameters
+        ----------
+        dofs : sequence of Dof or str
+            The dofs in matrix order; a name alone is a translational dof.
+        mass, damping, stiffness : array_like, (n, n)
+            M symmetric positive definite (full or diagonal), D and K symmetric positive semidefinite.
+        actuators, sensors, frictions : optional
+            As built by :func:`build_mechanics`, vectors of length n.
+        couplings : sequence of Link, optional
+            The springs that make K (``K = Σ k g gᵀ`` is checked to ``1e-10·max|K|``). Without them
+            K is split into its eigen-components ``λ v vᵀ`` (λ above ``n·ε·λ_max``), named
+            ``"K.1"``, ``"K.2"``, ...: the rigid modes are then K's null space to that tolerance
+            rather than the exact geometry of named springs.
+
+        Raises
+        ------
+        ModelError
+            Shapes that disagree, a non-symmetric D or K, an M that is not symmetric positive
+            definite, a K with a negative eigenvalue, couplings that do not make K.
+
+        Examples
+        --------
+        >>> mech = Mechanics.from_matrices(["a", "b"], [[2.0, 1.0], [1.0, 2.0]], np.zeros((2, 2)),
+        ...                                [[1.0, -1.0], [-1.0, 1.0]])
+        >>> mech.lumped, mech.rigid_modes().shape, [c.name for c in mech.couplings]
+        (False, (2, 1), ['K.1'])
+        """
+        dof_list = tuple(d if isinstance(d, Dof) else Dof(str(d), "translational") for d in dofs)
+        n = len(dof_list)
+        matrices = {}
+        for key, value in (("mass", mass), ("damping", damping), ("stiffness", stiffness)):
+            a = np.asarray(value, dtype=float)
+            if a.shape != (n, n):
+                raise ModelError(f"expected an ({n}, {n}) matrix for {n} dofs, got shape {a.shape}", path=key)
+            if not np.all(np.isfinite(a)):
+                raise ModelError("the matrix has non-finite entries", path=key)
+            if key != "mass" and np.max(np.abs(a - a.T), initial=0.0) > 1e-12 * np.max(np.abs(a), initial=0.0):
+                raise ModelError("the matrix is not symmetric", path=key)
+            matrices[key] = 0.5 * (a + a.T)
+        MassFactor(mass)                              # located error if M is not SPD (or not symmetric)
+        K = matrices["stiffness"]
+        scale = float(np.max(np.abs(K), initial=0.0))
+        if couplings is None:
+            couplings = _stiffness_links(K, dof_list)
+        else:
+            couplings = tuple(couplings)
+            made = sum((link.stiffness * np.outer(link.g, link.g) for link in couplings), np.zeros((n, n)))
+            if np.max(np.abs(made - K), initial=0.0) > 1e-10 * max(scale, float(np.max(np.abs(made), initial=0.0))):
+                raise ModelError("the couplings do not make the stiffness matrix (K = Σ k g gᵀ)",
+                                 path="couplings")
+        for group, items in (("actuators", actuators), ("sensors", sensors), ("frictions", frictions)):
+            for item in items:
+                vector = item.g if isinstance(item, Link) else item.vector
+                if np.shape(vector) != (n,):
+                    raise ModelError(f"expected a vector of length {n}", path=f"{group}.{item.name}")
+        return cls(dofs=dof_list, mass=matrices["mass"], damping=matrices["damping"], stiffness=K,
+                   actuators=tuple(actuators), sensors=tuple(sensors), couplings=couplings,
+                   frictions=tuple(frictions))
 
     def index(self, body: str) -> int:
         """Position of ``body`` in the dof vector."""
@@ -153,8 +242,6 @@ class Mechanics:
             direction = np.linalg.solve(self.stiffness, actuator)
         reach = float(tool @ direction)
         if abs(reach) < 1e-12 * np.linalg.norm(direction) * max(np.linalg.norm(tool), 1.0):
-            from ..errors import ModelError
-
             raise ModelError("the actuator cannot move the tool body in a rigid-body motion; "
                              "check the actuator, the couplings' ratios and the tool body")
         phi = direction / reach
@@ -171,6 +258,23 @@ class Mechanics:
         from .modal import modal_analysis
 
         return modal_analysis(self)
+
+
+def _stiffness_links(K: np.ndarray, dofs: tuple[Dof, ...]) -> tuple[Link, ...]:
+    """K split into rank-one springs ``λ v vᵀ`` (its eigen-components above ``n·ε·λ_max``)."""
+    n = K.shape[0]
+    if not np.any(K):
+        return ()
+    lam, vectors = np.linalg.eigh(K)
+    tol = n * np.finfo(float).eps * float(np.max(np.abs(lam)))
+    if lam[0] < -tol:
+        raise ModelError(f"the stiffness matrix has a negative eigenvalue ({lam[0]:.6g}); a passive "
+                         "mechanics has K positive semidefinite", path="stiffness")
+    kinds = {d.kind for d in dofs}
+    kind = kinds.pop() if len(kinds) == 1 else "translational"
+    keep = np.flatnonzero(lam > tol)[::-1]            # stiffest first
+    return tuple(Link(f"K.{i + 1}", _frozen(vectors[:, j]), kind, stiffness=float(lam[j]))
+                 for i, j in enumerate(keep))
 
 
 def build_mechanics(spec: "MechanicsKind") -> Mechanics:

@@ -215,25 +215,28 @@ def _check_passive(modes: list[Mode]) -> None:
 def _undamped(mech: "Mechanics") -> tuple[np.ndarray, np.ndarray, int]:
     """Undamped frequencies (ascending, rigid first and exactly 0), shapes and the rigid count.
 
-    ``K = Gᵀ diag(k) G`` with the couplings' stretch vectors G, so the natural frequencies are the
-    singular values of ``R = diag(√k) G M^{-1/2}`` and the shapes ``M^{-1/2}`` times its right singular
-    vectors. The SVD gets ω to an absolute accuracy ``ε·ω_max`` (the eigenproblem of K gets ω² to
-    ``ε·ω²_max``), so soft modes beside stiffnesses of 1e12 stay accurate.
+    ``K = Gᵀ diag(k) G`` with the couplings' stretch vectors G and ``M = L Lᵀ`` (Cholesky; for a
+    diagonal M, ``L = M^{1/2}``), so ``K φ = ω² M φ`` becomes ``RᵀR ψ = ω² ψ`` with
+    ``R = diag(√k) G L⁻ᵀ`` and ``φ = L⁻ᵀ ψ``: the natural frequencies are the singular values of R
+    and the shapes ``L⁻ᵀ`` times its right singular vectors. The SVD gets ω to an absolute accuracy
+    ``ε·ω_max`` (the eigenproblem of K gets ω² to ``ε·ω²_max``), so soft modes beside stiffnesses of
+    1e12 stay accurate; a full M adds its condition number to that bound (``L`` is as well
+    conditioned as ``√κ(M)``).
     """
     n = mech.n
-    m_half = 1.0 / np.sqrt(np.diag(mech.mass))
+    factor = mech.mass_factor
     springs = [link for link in mech.couplings if link.stiffness > 0]
     r = mech.rigid_modes().shape[1]
     if not springs:
         return np.zeros(n), np.eye(n), n
-    R = np.vstack([np.sqrt(link.stiffness) * link.g for link in springs]) * m_half[None, :]
+    R = factor.half_solve(np.vstack([np.sqrt(link.stiffness) * link.g for link in springs]).T).T
     _, sigma, vt = np.linalg.svd(R, full_matrices=True)
     values = np.zeros(n)
     values[: sigma.size] = sigma
     order = np.argsort(values)
     omega = values[order]
     omega[:r] = 0.0
-    shapes = m_half[:, None] * vt.T[:, order]
+    shapes = factor.half_solve(vt.T[:, order], transposed=True)
     return omega, shapes, r
 
 

@@ -114,7 +114,7 @@ def _greedy_keep(lumped: LumpedSpec, mech: Mechanics, psi: np.ndarray, *, bodies
     """Merge the groups joined by the stiffest spring until the count or the band is reached."""
     names = mech.dof_names
     n = mech.n
-    mass = np.diag(mech.mass) * psi ** 2  # in the normalised coordinates q = ψ p
+    mass = mech.lumped_masses("physical regrouping") * psi ** 2  # in the normalised coordinates q = ψ p
     springs = []  # (a, b or -1 for the ground, normalised stiffness)
     for link in mech.couplings:
         if link.stiffness <= 0:
@@ -436,7 +436,7 @@ def _regrouped_spec(lumped: LumpedSpec, mech: Mechanics, kept: list[str], kept_i
     nk = len(kept)
 
     # masses: each body's share, reflected through the ratios (rigid-motion kinetic energy kept)
-    m = np.diag(mech.mass)
+    m = mech.lumped_masses("physical regrouping")
     share = T * psi_k[None, :] / psi_all[:, None]  # how far body i follows kept body a, normalised
     masses = (m[:, None] * T * psi_all[:, None] / psi_k[None, :]).sum(axis=0)  # Σ m_i T_ia ψ_i/ψ_a
     merged_into = {}

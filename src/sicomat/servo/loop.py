@@ -193,19 +193,21 @@ def servo_plant(loop: ServoLoop, *, disturbance: np.ndarray | None = None) -> "P
     n = mech.n
     act = mech.actuator(loop.actuator)
     nx = 2 * n + 1
-    m_inv = 1.0 / np.diag(mech.mass)            # lumped bodies: M is diagonal
+    from ..mechanics.statespace import second_order_state_space
+
+    forces = [act.vector] + ([np.asarray(disturbance, dtype=float)] if disturbance is not None else [])
+    A_mech, B_mech = second_order_state_space(mech.mass_factor, mech.damping, mech.stiffness,
+                                              np.column_stack(forces))
     A = np.zeros((nx, nx))                      # eqs. (11)-(12) and the current loop
-    A[:n, n: 2 * n] = np.eye(n)
-    A[n: 2 * n, :n] = -m_inv[:, None] * mech.stiffness
-    A[n: 2 * n, n: 2 * n] = -m_inv[:, None] * mech.damping
-    A[n: 2 * n, 2 * n] = m_inv * act.vector * drv.kt
+    A[: 2 * n, : 2 * n] = A_mech
+    A[n: 2 * n, 2 * n] = B_mech[n:, 0] * drv.kt
     A[2 * n, 2 * n] = -1.0 / drv.tau
     eye = np.eye(nx)
     columns = [eye[2 * n] / drv.tau]
     inputs = ["current.reference"]
     if disturbance is not None:
         load = np.zeros(nx)
-        load[n: 2 * n] = m_inv * np.asarray(disturbance, dtype=float)
+        load[: 2 * n] = B_mech[:, 1]
         columns.append(load)
         inputs.append("disturbance")
     rows, names = [], []
@@ -414,11 +416,13 @@ def _assemble(loop: ServoLoop, setpoints: SetpointTable, s: _Slots, ops: list, b
 
     mech = loop.mechanics
     n, nx = mech.n, A.shape[0]
-    m_inv = 1.0 / np.diag(mech.mass)
+    from ..mechanics.statespace import second_order_input
+
     F = np.zeros((nx, len(links)))
     G = np.zeros((len(links), nx))
+    if links:
+        F[: 2 * n] = second_order_input(mech.mass_factor, np.column_stack([link.g for link in links]))
     for j, link in enumerate(links):
-        F[n: 2 * n, j] = m_inv * link.g
         G[j, n: 2 * n] = link.g
     continuous = p.ContinuousPart(
         A=A, B=B, C=C, D=D, F=F, G=G,
