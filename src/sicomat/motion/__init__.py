@@ -5,7 +5,7 @@ from .circle import CircleResult, ReversalSpike, evaluate_circle, least_squares_
 from .contour import contour_error, segment_distance
 from .gcode import GCodeError, parse_gcode, SUPPORTED_G, SUPPORTED_WORDS
 from .path import (Line, Arc, Path, PathSamples, AxisSetpoint, CircleTestPath, interpolate, circle_test_path, RADIUS_RTOL, RADIUS_ATOL)
-from .setpoints import Profile, profile_from_spec, step_profile, ramp_profile, trapezoid_profile
+from .setpoints import SetpointProfile, Profile, profile_from_spec, step_profile, ramp_profile, trapezoid_profile
 from .trajectory import JerkProfile, scurve_profile, scurve_sequence, scurve_durations
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "circle_test_path",
     "RADIUS_RTOL",
     "RADIUS_ATOL",
+    "SetpointProfile",
     "Profile",
     "profile_from_spec",
     "step_profile",

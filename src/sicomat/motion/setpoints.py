@@ -3,12 +3,33 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from ..description.motion import RampSetpoint, SCurveSetpoint, SetpointSpec, StepSetpoint, TrapezoidSetpoint
 
-__all__ = ["Profile", "profile_from_spec", "step_profile", "ramp_profile", "trapezoid_profile"]
+__all__ = ["SetpointProfile", "Profile", "profile_from_spec", "step_profile", "ramp_profile", "trapezoid_profile"]
+
+
+class SetpointProfile(Protocol):
+    """What a simulation reads from a setpoint: :class:`Profile`, the S-curve
+    :class:`~sicomat.motion.trajectory.JerkProfile` and one axis of a path
+    (:class:`~sicomat.motion.path.AxisSetpoint`) all have it (a static type, checked by mypy)."""
+
+    @property
+    def kind(self) -> str: ...
+
+    @property
+    def breaks(self) -> tuple[float, ...]: ...
+
+    @property
+    def end_time(self) -> float: ...
+
+    @property
+    def distance(self) -> float: ...
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
 @dataclass(frozen=True)
@@ -92,7 +113,7 @@ def trapezoid_profile(distance: float, max_velocity: float, max_acceleration: fl
                    tuple(sign * x for x in acc), kind="trapezoid")
 
 
-def profile_from_spec(spec: SetpointSpec) -> Profile:
+def profile_from_spec(spec: SetpointSpec) -> SetpointProfile:
     """The profile a model file's ``trajectory`` table describes."""
     if isinstance(spec, StepSetpoint):
         return step_profile(spec.distance, spec.start)

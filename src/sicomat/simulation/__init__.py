@@ -16,18 +16,18 @@ from .timeseries import TimeSeries, step_metrics
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
     from ..progress import ProgressCallback
-    from ..motion.setpoints import Profile
+    from ..motion.setpoints import SetpointProfile
 
 __all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs"]
 
 
-def loop_program(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True):
+def loop_program(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, nonlinear: bool = True):
     """The hybrid program of ``loop`` following ``profile`` for ``duration`` seconds, and its step count."""
     programs, n_steps = loop_programs([loop], profile, duration, nonlinear=nonlinear)
     return programs[0], n_steps
 
 
-def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
+def loop_programs(loops: Sequence["ServoLoop"], profile: "SetpointProfile", duration: float, *,
                   nonlinear: bool = True, recorded: int | None = None) -> tuple[list, int]:
     """:func:`loop_program` for variants of one loop: the setpoints are sampled once for all.
 
@@ -75,7 +75,7 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: fl
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
 
 
-def _values_per_step(loop: "ServoLoop", profile: "Profile", nonlinear: bool) -> int:
+def _values_per_step(loop: "ServoLoop", profile: "SetpointProfile", nonlinear: bool) -> int:
     """Values one run of ``loop`` keeps per base step: the recorded slots, the continuous states and
     each friction link's force and stuck flag (the program of a one-sample table tells them)."""
     from ..servo.loop import SetpointTable, servo_program
@@ -96,7 +96,7 @@ def _require_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -
                                               f"and the setpoint table")
 
 
-def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True,
+def simulate(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, nonlinear: bool = True,
              progress: "ProgressCallback | None" = None) -> TimeSeries:
     """Simulate the closed loop following a setpoint profile.
 
@@ -199,7 +199,7 @@ class BatchMetrics:
                              "final_error": self.final_error, "diverged": self.diverged})
 
 
-def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
+def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", duration: float, *,
                    nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> BatchMetrics:
     """Simulate many variants of one loop (other gains, masses, stiffnesses, limits, ...) in one
     compiled call and return each variant's following-error figures.

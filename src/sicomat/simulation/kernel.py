@@ -53,12 +53,17 @@ class SimulationDiverged(SicomatError, ArithmeticError):
         Base step index of that time.
     variant : int or None
         Index of the diverged variant in :func:`run_batch`, else None.
+    axis : str or None
+        The machine axis that diverged, when a multi-axis run (:func:`sicomat.simulation.paths.simulate_path`)
+        knows it, else None.
     """
 
-    def __init__(self, message: str, *, time: float, step: int, variant: int | None = None) -> None:
+    def __init__(self, message: str, *, time: float, step: int, variant: int | None = None,
+                 axis: str | None = None) -> None:
         self.time = time
         self.step = step
         self.variant = variant
+        self.axis = axis
         super().__init__(message)
 
 

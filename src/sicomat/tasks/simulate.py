@@ -30,8 +30,8 @@ def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration)
         vmax, amax = DEFAULT_MAX_VELOCITY, DEFAULT_MAX_ACCELERATION
         if isinstance(trajectory, TrapezoidSetpoint):
             vmax, amax = trajectory.max_velocity, trajectory.max_acceleration
-        profile = trapezoid_profile(move_mm * 1e-3, max_velocity or vmax, max_acceleration or amax)
-        return profile, profile.end_time + 0.2
+        move = trapezoid_profile(move_mm * 1e-3, max_velocity or vmax, max_acceleration or amax)
+        return move, move.end_time + 0.2
     if trajectory is None:
         raise ModelError("no setpoint: give --step MM or --move MM, or add a [axes.<name>.trajectory] table",
                          source="options")
