@@ -11,14 +11,16 @@ import numpy as np
 
 from ..errors import ModelError
 from ..progress import notify
-from .timeseries import TimeSeries, step_metrics
+from .timeseries import TimeSeries, StepMetrics, step_metrics
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
     from ..progress import ProgressCallback
     from ..motion.setpoints import SetpointProfile
 
-__all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs"]
+__all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs",
+           "TimeSeries", "StepMetrics", "step_metrics",
+           "PathRun", "CircleTest", "simulate_path", "circle_test"]
 
 
 def loop_program(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, nonlinear: bool = True):
@@ -233,5 +235,10 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dur
     bad = np.concatenate([p.diverged for p in parts]) if len(parts) > 1 else result.diverged
     with np.errstate(invalid="ignore"):
         figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]
-    figures = [np.where(bad, np.nan, f) for f in figures]
-    return BatchMetrics(*figures, diverged=bad, wall_time_s=wall)
+    max_error, rms_error, final_error = (np.where(bad, np.nan, f) for f in figures)
+    return BatchMetrics(max_error, rms_error, final_error, diverged=bad, wall_time_s=wall)
+
+
+# the multi-axis runs (the circle test) are part of this stage's public face (sicomat/__init__ exports
+# them from here); imported last: paths.py needs nothing of this module at import time
+from .paths import CircleTest, PathRun, circle_test, simulate_path  # noqa: E402

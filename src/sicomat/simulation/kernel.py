@@ -1086,7 +1086,7 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
         out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"], rec,
         x_final, status, k_bad)
     diverged_step = np.where(status != _OK, k_bad, -1)
-    for v in np.flatnonzero(status != _OK):
+    for v in np.flatnonzero(status != _OK).tolist():
         if on_divergence == "raise":
             raise _diverged(int(status[v]), int(k_bad[v]), step, int(v))
         rec[v, -(-int(k_bad[v]) // every):] = 0.0
