@@ -19,8 +19,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..motion.setpoints import SetpointProfile
 
 __all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs",
-           "TimeSeries", "StepMetrics", "step_metrics",
-           "PathRun", "CircleTest", "simulate_path", "circle_test"]
+           "TimeSeries", "StepMetrics", "step_metrics"]
+# the multi-axis runs (simulate_path, circle_test: simulation/paths.py) are not re-exported here:
+# paths.py uses this module's simulate(), and re-exporting it would knot the two (an import cycle)
 
 
 def loop_program(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, nonlinear: bool = True):
@@ -237,8 +238,3 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dur
         figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]
     max_error, rms_error, final_error = (np.where(bad, np.nan, f) for f in figures)
     return BatchMetrics(max_error, rms_error, final_error, diverged=bad, wall_time_s=wall)
-
-
-# the multi-axis runs (the circle test) are part of this stage's public face (sicomat/__init__ exports
-# them from here); imported last: paths.py needs nothing of this module at import time
-from .paths import CircleTest, PathRun, circle_test, simulate_path  # noqa: E402
