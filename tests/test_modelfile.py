@@ -162,6 +162,9 @@ ERROR_CASES = [
      "axes.X.mechanics.bodies.a.mass", None),
     ("torque-for-a-stiffness", BASE.replace("stiffness = 100.0", 'stiffness = "3 kg*rad/s^2"'),
      "axes.X.mechanics.couplings.k.stiffness", None),
+    # a sensor's body that is not a name, with a resolution to parse (was a TypeError, found by mypy)
+    ("sensor-body-a-list", BASE + '\n[axes.X.mechanics.sensors.s]\nbody = ["a"]\nresolution = "1 um"\n',
+     "axes.X.mechanics.sensors.s.body", None),
 ]
 
 

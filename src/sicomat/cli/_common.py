@@ -86,9 +86,9 @@ class OneLineErrors(typer.core.TyperGroup):
 @contextmanager
 def _one_line_usage_errors(command_path) -> Iterator[None]:
     try:   # recent Typer carries its own copy of click
-        from typer._click import exceptions as click  # type: ignore[import-not-found]
-    except ImportError:  # pragma: no cover
-        from click import exceptions as click
+        from typer._click import exceptions as click
+    except ImportError:  # pragma: no cover - older Typer depends on click itself (not installed with new Typer)
+        from click import exceptions as click  # type: ignore[no-redef, import-not-found, unused-ignore]
 
     try:
         yield

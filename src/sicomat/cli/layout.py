@@ -51,7 +51,7 @@ def print_table(console: "Console", table: "Table") -> None:
     original = (table.box, table.pad_edge, table.show_edge, table.padding)
     spares = []
     for style, padding in candidates:
-        if style is not None:
+        if style is not None and padding is not None:
             table.box, table.pad_edge, table.show_edge, table.padding = style, False, False, padding
         spares.append(console.width - _rendered_width(table, need))
     # the first layout where header words are whole, else the first where the cells fit
@@ -62,8 +62,10 @@ def print_table(console: "Console", table: "Table") -> None:
         _print_records(console, table, headers, cells)
         return
     style, padding = candidates[choice]
-    table.box, table.pad_edge, table.show_edge, table.padding = (
-        original if style is None else (style, False, False, padding))
+    if style is None or padding is None:
+        table.box, table.pad_edge, table.show_edge, table.padding = original
+    else:
+        table.box, table.pad_edge, table.show_edge, table.padding = style, False, False, padding
     spare = spares[choice]
     widths = list(need)
     for target in (header_word, natural):  # unfold header words first, then unwrap lines

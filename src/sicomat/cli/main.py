@@ -284,9 +284,9 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             from ..tuning.time import TimeTargets, tune_time
 
             with progress_bar() as progress:
-                result = tune_time(servo, TimeTargets(min_gain_margin=min_gain_margin), progress=progress)
-            payload = result.to_dict()
-            gains = {"Kp": result.Kp, "Kp_normalized": result.Kp_normalized, "Ti": result.Ti, "Kv": result.Kv}
+                timed = tune_time(servo, TimeTargets(min_gain_margin=min_gain_margin), progress=progress)
+            payload = timed.to_dict()
+            gains = {"Kp": timed.Kp, "Kp_normalized": timed.Kp_normalized, "Ti": timed.Ti, "Kv": timed.Kv}
             notch = None
         else:
             from ..tuning.frequency import TuningTargets, tune_frequency

@@ -12,7 +12,10 @@ from __future__ import annotations
 import sys
 import threading
 from contextlib import contextmanager
-from typing import Iterator, Optional
+from typing import TYPE_CHECKING, Iterator, Optional
+
+if TYPE_CHECKING:  # pragma: no cover
+    from rich.progress import Progress, TaskID
 
 __all__ = ["progress_bar", "DELAY"]
 
@@ -39,8 +42,8 @@ class _Bar:
     def __init__(self, console) -> None:
         self._console = console
         self._lock = threading.Lock()
-        self._progress = None
-        self._task_id = None
+        self._progress: "Progress | None" = None
+        self._task_id: "TaskID | None" = None
         self._state: tuple[str, float, Optional[float]] | None = None
         self._closed = False
         self._timer = threading.Timer(DELAY, self._show)
@@ -60,13 +63,14 @@ class _Bar:
                                       MofNCompleteColumn(), TimeElapsedColumn(), console=self._console,
                                       transient=True, redirect_stdout=False, redirect_stderr=False)
             task, done, total = self._state or ("working", 0, None)
-            self._task_id = self._progress.add_task(task, completed=done, total=total)
+            self._task_id = self._progress.add_task(task, total=total)
+            self._progress.update(self._task_id, completed=done)   # add_task's `completed` is typed int
             self._progress.start()
 
     def __call__(self, task: str, done: float, total: Optional[float]) -> None:
         with self._lock:
             self._state = (task, done, total)
-            if self._progress is not None:
+            if self._progress is not None and self._task_id is not None:
                 self._progress.update(self._task_id, description=task, completed=done, total=total)
 
     def close(self) -> None:

@@ -16,7 +16,7 @@ __all__ = ["check_payload", "print_check", "print_modal", "print_verdict"]
 
 def check_payload(machine: "Machine", mechanics: dict[str, "Mechanics"]) -> dict[str, Any]:
     """The ``sicomat check --json`` object: the machine's axes as lumped models (SI units)."""
-    axes = {}
+    axes: dict[str, dict[str, Any]] = {}
     for name, mech in mechanics.items():
         axes[name] = {
             "mechanics_type": machine.axes[name].mechanics.type,

@@ -7,7 +7,7 @@ downstream reads plain SI numbers. Changing a model means making a new one
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, Mapping
 
 from pydantic import ConfigDict, Field, model_validator
 
@@ -254,7 +254,7 @@ class LumpedSpec(Spec):
                 n = parent[n]
             return n
 
-        touched = set()
+        touched: set[str] = set()
         for a, b in edges:
             touched.update((a, b))
             parent[root(a)] = root(b)
@@ -288,7 +288,7 @@ def _known(names: set[str]) -> str:
     return ", ".join(sorted(names) + [GROUND])
 
 
-def resolve_stretch(explicit: Any, between: Any, kinds: dict[str, str]) -> Kind:
+def resolve_stretch(explicit: Any, between: Any, kinds: Mapping[str, str]) -> Kind:
     """Whether a link stretches in translation or rotation: ``explicit`` when given, else
     translational if either end is a translational body (``kinds``: body name → kind)."""
     if explicit in ("translational", "rotational"):
@@ -328,7 +328,8 @@ def _parse_resolution(sensor: Any, kinds: dict[str, str], where: str) -> Any:
     if not isinstance(sensor, dict) or sensor.get("resolution") is None:
         return sensor
     # an unknown body is reported by the topology check; parse the resolution as a length then
-    unit = "angle" if kinds.get(sensor.get("body")) == "rotational" else "length"
+    body = sensor.get("body")
+    unit = "angle" if isinstance(body, str) and kinds.get(body) == "rotational" else "length"
     try:
         return {**sensor, "resolution": parse_quantity(sensor["resolution"], UNITS[unit])}
     except ValueError as exc:

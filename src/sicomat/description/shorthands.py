@@ -113,8 +113,9 @@ def chain_to_lumped(spec: "ChainSpec") -> "LumpedSpec":
         frictions = {f"{name}_guide": {"between": [name, "ground"], "viscous": c}
                      for name, c in zip(names, spec.viscous) if c > 0}
     sensors = {"first": {"body": names[0]}, "last": {"body": names[-1]}}
-    return LumpedSpec(bodies=bodies, couplings=couplings, frictions=frictions,
-                      actuators={"motor": {"body": names[0]}}, sensors=sensors)
+    # validated from plain tables, as a model file's [mechanics] would be
+    return LumpedSpec.model_validate({"bodies": bodies, "couplings": couplings, "frictions": frictions,
+                                      "actuators": {"motor": {"body": names[0]}}, "sensors": sensors})
 
 
 def belt_rack_equivalents(spec: "BeltRackSpec") -> dict[str, float]:
@@ -152,11 +153,11 @@ def belt_rack_to_lumped(spec: "BeltRackSpec") -> "LumpedSpec":
     if spec.mu12eq > 0 or spec.coulomb_load > 0:
         frictions["load_guides"] = {"between": ["load", "ground"], "viscous": spec.mu12eq,
                                     "coulomb": spec.coulomb_load}
-    return LumpedSpec(
-        bodies={"motor": {"inertia": eq["J11eq"]}, "load": {"mass": eq["M12eq"]}},
-        couplings={"transmission": {"between": ["motor", "load"], "ratios": [eq["ratio"], 1.0],
-                                    "stiffness": spec.k11eq, "damping": spec.f11eq}},
-        frictions=frictions,
-        actuators={"motor": {"body": "motor"}},
-        sensors={"encoder": {"body": "motor"}, "scale": {"body": "load"}},
-    )
+    return LumpedSpec.model_validate({
+        "bodies": {"motor": {"inertia": eq["J11eq"]}, "load": {"mass": eq["M12eq"]}},
+        "couplings": {"transmission": {"between": ["motor", "load"], "ratios": [eq["ratio"], 1.0],
+                                       "stiffness": spec.k11eq, "damping": spec.f11eq}},
+        "frictions": frictions,
+        "actuators": {"motor": {"body": "motor"}},
+        "sensors": {"encoder": {"body": "motor"}, "scale": {"body": "load"}},
+    })

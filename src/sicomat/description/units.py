@@ -67,7 +67,7 @@ UNITS: dict[str, Unit] = {
 def _registry():
     import pint
 
-    ureg = pint.UnitRegistry()
+    ureg: pint.UnitRegistry[Any] = pint.UnitRegistry()
     ureg.define("@alias revolution = rev")
     return ureg
 

@@ -39,6 +39,7 @@ def default_omega(loop: "ServoLoop", which: str, n: int = 2000) -> np.ndarray:
     refined around every lightly damped mode of the mechanics (±50 half-power bandwidths), so that
     resonance peaks and their loops on a Nichols chart are resolved whatever their damping."""
     ctrl = loop.controller
+    period: float | None
     if which.startswith(("position", "following")) and ctrl.position_loop == "discrete":
         period = ctrl.position_period
     else:
@@ -113,10 +114,11 @@ class LoopAnalysis:
         measurement (differencing, conversion, filter), so that ``L_v = (C_p + C_i)·A·M``; at
         ``s = jω`` for an analog velocity loop."""
         loop, ctrl = self.loop, self.loop.controller
+        integral: np.ndarray
         if self.analog:
             s = 1j * omega
             plant = _continuous_response(self.Phi, self.Gamma, self.c_vel, s)
-            actuation = np.full(s.shape, 1.0 / loop.drive.kt, dtype=complex)
+            actuation: np.ndarray = np.full(s.shape, 1.0 / loop.drive.kt, dtype=complex)
             for spec in ctrl.current_filters:
                 actuation = actuation * _tf_at(spec, s)
             integral = Kp / (Ti * s)
@@ -321,6 +323,7 @@ class LoopAnalysis:
             forward = (cp + ci) if ctrl.type == "P-PI" else ci
             return FrequencyResponse(omega, forward * act * meas / (1.0 + L), which, Tv,
                                      info={"input": "velocity command", "output": "measured velocity"})
+        diff: np.ndarray
         if Tp is None:         # a continuous position loop around the analog velocity loop
             g_v, g_f = self.position_continuous(omega, Kp, Ti)
             z, diff = np.exp(1j * omega * ctrl.position_period), 1j * omega

@@ -295,7 +295,7 @@ def stability_margins(frf: FrequencyResponse, *, closed_loop_static_gain: float 
     if closed_loop_static_gain is None:
         closed_loop_static_gain = frf.info.get("closed_loop_static_gain")
     exact = closed_loop_static_gain is not None
-    static = abs(complex(closed_loop_static_gain)) if exact else float(np.abs(T.response[0]))
+    static = abs(complex(closed_loop_static_gain)) if closed_loop_static_gain is not None else float(np.abs(T.response[0]))
     bandwidth = closed_loop_bandwidth(T, static)
     return Margins(
         gain_margin_db=gm_rep, phase_margin_deg=pm_worst,

@@ -120,7 +120,7 @@ def check_output(path: PathLike, kind: Optional[str] = None, *, option: Optional
     return target
 
 
-def atomic_write(path: PathLike, write: Callable[[str], None], suffix: Optional[str] = None, *,
+def atomic_write(path: PathLike, write: Callable[[str], object], suffix: Optional[str] = None, *,
                  kind: Optional[str] = None, inputs: Mapping[str, Optional[PathLike]] = {}) -> Path:
     """Check ``path`` (:func:`check_output`), call ``write(temporary_path)``, then rename the result over it.
 

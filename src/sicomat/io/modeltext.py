@@ -137,8 +137,8 @@ def _fresh(value: Any, inline: bool = False) -> Any:
         return array
     item = tomlkit.item(value)
     tables = item if isinstance(item, tomlkit.items.AoT) else [item] if isinstance(item, tomlkit.items.Table) else []
-    for table in tables:
-        table.add(tomlkit.nl())
+    for block in tables:
+        block.add(tomlkit.nl())
     return item
 
 

@@ -291,6 +291,6 @@ def static_gain(A, B, C, D=None, *, discrete: bool) -> np.ndarray:
     power = np.eye(k)
     seen = np.zeros(out.shape, dtype=bool)
     for j in range(k):
-        seen |= np.abs(C1 @ power @ B1) > floor * max(1.0, np.linalg.norm(N, 2)) ** j
+        seen |= np.abs(C1 @ power @ B1) > floor * max(1.0, float(np.linalg.norm(N, 2))) ** j
         power = power @ N
     return np.where(seen, np.inf, out)

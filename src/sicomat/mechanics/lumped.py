@@ -241,7 +241,7 @@ class Mechanics:
         else:
             direction = np.linalg.solve(self.stiffness, actuator)
         reach = float(tool @ direction)
-        if abs(reach) < 1e-12 * np.linalg.norm(direction) * max(np.linalg.norm(tool), 1.0):
+        if abs(reach) < 1e-12 * np.linalg.norm(direction) * max(float(np.linalg.norm(tool)), 1.0):
             raise ModelError("the actuator cannot move the tool body in a rigid-body motion; "
                              "check the actuator, the couplings' ratios and the tool body")
         phi = direction / reach

@@ -9,7 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import ModelError
-from .path import Arc, Line, Path
+from .path import Arc, Line, Path, Segment
 
 __all__ = ["GCodeError", "parse_gcode", "SUPPORTED_G", "SUPPORTED_WORDS"]
 
@@ -88,11 +88,11 @@ class _State:
 
     programmed: np.ndarray          # where the program believes the tool is
     actual: np.ndarray              # where the last segment really ended (an arc ends on its circle)
-    motion: int | None = None
+    motion: tuple[int, str] | None = None    # (G code, the word as written)
     absolute: bool = True
     feed: float | None = None
-    segments: list = field(default_factory=list)
-    feeds: list = field(default_factory=list)
+    segments: list[Segment] = field(default_factory=list)
+    feeds: list[float] = field(default_factory=list)
 
 
 def _strip(text: str, err) -> str:
@@ -193,6 +193,7 @@ def _move(state: _State, motion: tuple[int, str], values: dict, written: dict, a
         if state.feed is None:
             raise err("no feed rate: program F (mm/min) before the first G01, G02 or G03", word)
         feed = state.feed
+    segment: Segment
     if code in (0, 1):
         if "I" in values or "J" in values:
             raise err(f"I and J give an arc's centre and need G02 or G03 (G0{code} is active)",
@@ -291,4 +292,4 @@ def parse_gcode(text: str, source: str = "<string>", *, rapid_feed: float | None
             break
     if not state.segments:
         raise GCodeError("the program has no move", source=source)
-    return Path(state.segments, feeds=state.feeds, axis_names=tuple(axes.lower()))
+    return Path(tuple(state.segments), feeds=tuple(state.feeds), axis_names=tuple(axes.lower()))

@@ -19,7 +19,7 @@ RADIUS_ATOL = 1e-6
 TWO_PI = 2 * math.pi
 
 
-def _point(value: Sequence[float], name: str, dim: int | None = None) -> tuple[float, ...]:
+def _point(value: Sequence[float] | np.ndarray, name: str, dim: int | None = None) -> tuple[float, ...]:
     arr = np.asarray(value, dtype=float).ravel()
     if arr.size not in (2, 3) or (dim is not None and arr.size != dim):
         expected = f"{dim}" if dim is not None else "2 or 3"
@@ -101,12 +101,12 @@ class Arc:
         if i == j or not (0 <= i < len(start) and 0 <= j < len(start)):
             raise ModelError(f"arc plane must be two distinct axis indices below {len(start)}",
                              value=self.plane, has_value=True)
-        center = np.asarray(self.center, dtype=float).ravel()
-        if center.size == 2 and len(start) == 3:
+        given = np.asarray(self.center, dtype=float).ravel()
+        if given.size == 2 and len(start) == 3:
             full = np.array(start)
-            full[[i, j]] = center
-            center = full
-        center = _point(center, "arc center", len(start))
+            full[[i, j]] = given
+            given = full
+        center = _point(given, "arc center", len(start))
         for k in range(len(start)):
             if k not in (i, j) and abs(end[k] - start[k]) > RADIUS_ATOL:
                 raise ModelError(f"helical arcs are not supported: axis {k} moves from {start[k]:.9g} m "
@@ -190,7 +190,8 @@ class Path:
 
     segments: tuple[Segment, ...]
     feeds: tuple[float, ...] | None = None
-    axis_names: tuple[str, ...] | None = None
+    # None (the default) is replaced by the default names in __post_init__: readers always see a tuple
+    axis_names: tuple[str, ...] = None  # type: ignore[assignment]
     starts: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -324,19 +325,20 @@ def circle_test_path(center: Sequence[float], radius: float, clockwise: bool = F
         if not (0.0 <= value <= TWO_PI):
             raise ModelError(f"{name} must be between 0 and 2π rad", value=value, has_value=True)
     c = np.asarray(_point(center, "circle centre"))
+    centre = tuple(float(v) for v in c)
     sgn = -1.0 if clockwise else 1.0
 
-    def at(angle: float) -> np.ndarray:
+    def at(angle: float) -> tuple[float, ...]:
         p = c.copy()
         p[:2] += radius * np.array([math.cos(angle), math.sin(angle)])
-        return p
+        return tuple(float(v) for v in p)
 
     segments: list[Segment] = []
     if lead_in_angle > 0:
-        segments.append(Arc(at(start_angle - sgn * lead_in_angle), at(start_angle), c, clockwise))
-    segments.append(Arc(at(start_angle), at(start_angle), c, clockwise))
+        segments.append(Arc(at(start_angle - sgn * lead_in_angle), at(start_angle), centre, clockwise))
+    segments.append(Arc(at(start_angle), at(start_angle), centre, clockwise))
     if lead_out_angle > 0:
-        segments.append(Arc(at(start_angle), at(start_angle + sgn * lead_out_angle), c, clockwise))
+        segments.append(Arc(at(start_angle), at(start_angle + sgn * lead_out_angle), centre, clockwise))
     s0 = radius * lead_in_angle
-    return CircleTestPath(Path(segments), (s0, s0 + TWO_PI * radius), tuple(float(v) for v in c), radius,
+    return CircleTestPath(Path(tuple(segments)), (s0, s0 + TWO_PI * radius), tuple(float(v) for v in c), radius,
                           bool(clockwise), float(start_angle))

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Union
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
@@ -11,7 +11,28 @@ from ..description.motion import RampSetpoint, SCurveSetpoint, SetpointSpec, Ste
 from ..description.registry import registered_types
 from .trajectory import JerkProfile, scurve_profile
 
-__all__ = ["Profile", "profile_from_spec", "lowers", "step_profile", "ramp_profile", "trapezoid_profile"]
+__all__ = ["SetpointProfile", "Profile", "profile_from_spec", "lowers", "step_profile", "ramp_profile",
+           "trapezoid_profile"]
+
+
+class SetpointProfile(Protocol):
+    """What a simulation reads from a setpoint: :class:`Profile`, the S-curve
+    :class:`~sicomat.motion.trajectory.JerkProfile` and one axis of a path
+    (:class:`~sicomat.motion.path.AxisSetpoint`) all have it (a static type, checked by mypy)."""
+
+    @property
+    def kind(self) -> str: ...
+
+    @property
+    def breaks(self) -> tuple[float, ...]: ...
+
+    @property
+    def end_time(self) -> float: ...
+
+    @property
+    def distance(self) -> float: ...
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
 @dataclass(frozen=True)
@@ -96,7 +117,7 @@ def trapezoid_profile(distance: float, max_velocity: float, max_acceleration: fl
 
 
 # --------------------------------------------------------------------------- the one lowering
-AnyProfile = Union[Profile, JerkProfile]
+AnyProfile = SetpointProfile
 _LOWERINGS: dict[str, Callable[[Any], AnyProfile]] = {}
 
 

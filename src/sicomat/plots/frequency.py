@@ -8,7 +8,7 @@ the margins come from :func:`sicomat.frequency.margins.stability_margins`.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,7 +28,7 @@ M_CIRCLES_DB = (-6.0, -3.0, 0.0, 1.0, 2.0, 3.0, 6.0)
 #: Phase-margin targets (deg) drawn as dashed lines right of each critical point of a Nichols chart.
 PHASE_MARGIN_GRID_DEG = (30.0, 45.0, 60.0)
 
-_GRID_STYLE = {"color": "0.6", "linewidth": 0.6}
+_GRID_STYLE: dict[str, Any] = {"color": "0.6", "linewidth": 0.6}
 
 
 def bode_figure(frfs: FrequencyResponse | Sequence[FrequencyResponse],
@@ -192,7 +192,7 @@ def _declutter(fig: "Figure", ax: "Axes") -> None:
     renderer = canvas.get_renderer()
     texts = [t for t in ax.texts if t.get_gid() in _LABEL_PRIORITY and t.get_visible()]
     texts.sort(key=lambda t: _LABEL_PRIORITY.index(t.get_gid()))
-    kept = []
+    kept: list[Any] = []     # the window extents (Bbox) of the labels kept
     for text in texts:
         box = text.get_window_extent(renderer)
         if any(box.overlaps(other) for other in kept):
@@ -333,8 +333,8 @@ def _nichols_view(curves) -> tuple[tuple[float, float], tuple[float, float]]:
     g_lo = max(float(gains.min()), -40.0) if gains.size else -20.0
     g_hi = min(float(gains.max()), 50.0) if gains.size else 10.0
     y_lo, y_hi = min(g_lo, -20.0) - 2.0, max(g_hi, 10.0) + 2.0
-    seen = [p[np.isfinite(g) & (g >= y_lo) & (g <= y_hi)] for p, g in curves]
-    seen = np.concatenate(seen) if seen else np.zeros(0)
+    in_view = [p[np.isfinite(g) & (g >= y_lo) & (g <= y_hi)] for p, g in curves]
+    seen = np.concatenate(in_view) if in_view else np.zeros(0)
     x_lo = min(float(seen.min()) if seen.size else -240.0, -240.0)
     x_hi = max(float(seen.max()) if seen.size else -120.0, -120.0)
     pad = max(0.03 * (x_hi - x_lo), 15.0)

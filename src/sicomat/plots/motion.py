@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
+    from matplotlib.projections.polar import PolarAxes
 
     from ..motion.circle import CircleResult
     from ..motion import PathSamples
@@ -52,7 +53,7 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
     theta = np.append(result.angle[order], result.angle[order][0] + 2 * math.pi)
     rho = 1.0 + scale * np.append(dev[order], dev[order][0])
     fig = _figure(figsize=(6.4, 6.8), layout="constrained")
-    ax = fig.add_subplot(projection="polar")
+    ax = cast("PolarAxes", fig.add_subplot(projection="polar"))
     circle = np.linspace(0, 2 * math.pi, 361)
     ax.plot(circle, np.ones_like(circle), color="gray", linestyle="--", linewidth=0.8, label="nominal")
     ax.plot(theta, rho, color="tab:blue", linewidth=1.0, label=f"actual (deviation ×{magnification:g})")

@@ -222,7 +222,7 @@ class _ModalGramians:
         self.a1, self.a2, self.r1, self.r2, self.pair = a1, a2, r1, r2, pair
         Vr = np.where(pair[None, :], 0.0, V.real)  # real basis: x = V_r ξ, ξ = W_r x
         Wr = np.where(pair[:, None], 0.0, W.real)
-        for j in np.flatnonzero(pair & (r2 == 1.0)):
+        for j in np.flatnonzero(pair & (r2 == 1.0)).tolist():
             Vr[:, j], Vr[:, j + 1] = V[:, j].real, V[:, j].imag
             Wr[j], Wr[j + 1] = 2.0 * W[j].real, -2.0 * W[j].imag
         self.block = StateBlock(A, Wr @ B, C @ Vr)
@@ -497,7 +497,7 @@ def schur_truncation(plant: Plant, order: int, *, band_hz: tuple[float, float] |
                            band_hz=band_hz, notes=tuple(notes), warnings=tuple(warnings), rigid_tol=rigid_tol)
 
 
-def frequency_limited_truncation(plant: Plant, order: int, band_hz: tuple[float, float], *,
+def frequency_limited_truncation(plant: Plant, order: int, band_hz: tuple[float, float] | None, *,
                                  rigid_tol: float = RIGID_TOL,
                                  inputs: Sequence[str] | None = None,
                                  outputs: Sequence[str] | None = None) -> "ReductionResult":

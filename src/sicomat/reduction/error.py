@@ -80,7 +80,7 @@ def select_transfer(plant: Plant, inputs: Sequence[str] | str | None = None,
     >>> select_transfer(plant, outputs=["last"]).outputs
     ('last',)
     """
-    chosen = {}
+    chosen: dict[str, list[str] | None] = {}
     for kind, names, known in (("input", inputs, plant.inputs), ("output", outputs, plant.outputs)):
         if names is None:
             chosen[kind] = None
@@ -119,7 +119,7 @@ class _Response:
             try:
                 lam, V = np.linalg.eig(f.A)
                 W = np.linalg.inv(V)
-                kappa = np.linalg.norm(V) * np.linalg.norm(W) / f.n
+                kappa = float(np.linalg.norm(V) * np.linalg.norm(W) / f.n)
             except np.linalg.LinAlgError:
                 kappa = np.inf
             if np.isfinite(kappa) and kappa < 1e8:

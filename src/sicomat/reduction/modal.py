@@ -225,7 +225,7 @@ def spectral_split(plant: Plant, *, rigid_tol: float = RIGID_TOL, marginal: bool
         # a slow real pole is a pole at 0 only if it is within its own round-off of 0: the velocity
         # pole −c/m of a rigid motion with viscous guides is well conditioned and stays, while a
         # rigid pole pushed off 0 by the round-off of K's row sums has a tiny reciprocal condition
-        if abs(lam[i]) > 1e3 * np.finfo(float).eps * np.linalg.norm(T) / _reciprocal_condition(T, i):
+        if abs(lam[i]) > 1e3 * np.finfo(float).eps * np.linalg.norm(T) / _reciprocal_condition(T, int(i)):
             is_zero[i] = False
     n_zero = int(is_zero.sum())
     first = is_zero.copy()
@@ -276,7 +276,9 @@ def _real_modal_form(block: StateBlock) -> tuple[StateBlock, np.ndarray]:
     W = np.linalg.inv(V)
     order = np.lexsort((-lam.imag, np.abs(lam)))
     A = np.zeros((n, n))
-    rows_v, rows_w, poles = [], [], []
+    rows_v: list[np.ndarray] = []
+    rows_w: list[np.ndarray] = []
+    poles: list[complex] = []
     used = np.zeros(n, dtype=bool)
     tol = 1e-9 * max(np.max(np.abs(lam)), 1.0)
     for i in order:

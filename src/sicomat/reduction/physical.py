@@ -281,8 +281,8 @@ def _pieces(gh: np.ndarray) -> list[tuple[int, int, float]]:
     neg = {i: float(-v) for i, v in enumerate(gh) if v < 0}
     out = []
     while pos and neg:
-        a = max(pos, key=pos.get)
-        b = max(neg, key=neg.get)
+        a = max(pos, key=pos.__getitem__)
+        b = max(neg, key=neg.__getitem__)
         c = min(pos[a], neg[b])
         out.append((a, b, c))
         for side, key in ((pos, a), (neg, b)):
@@ -311,11 +311,11 @@ def _unique(name: str, taken: set[str]) -> str:
 def _single_target(w: np.ndarray, kept: Sequence[str], what: str) -> tuple[str | None, str | None]:
     """``(plus, minus)``: the kept bodies of a weight vector that must read ``e_plus − e_minus``."""
     w = np.where(np.abs(w) <= _UNIT_TOL, 0.0, w)
-    plus = [i for i in np.flatnonzero(w) if abs(w[i] - 1.0) <= _UNIT_TOL]
-    minus = [i for i in np.flatnonzero(w) if abs(w[i] + 1.0) <= _UNIT_TOL]
+    plus = [int(i) for i in np.flatnonzero(w) if abs(w[i] - 1.0) <= _UNIT_TOL]
+    minus = [int(i) for i in np.flatnonzero(w) if abs(w[i] + 1.0) <= _UNIT_TOL]
     if np.count_nonzero(w) != len(plus) + len(minus) or len(plus) > 1 or len(minus) > 1 or \
             (minus and not plus):
-        spread = ", ".join(f"{kept[i]}: {w[i]:.4g}" for i in np.flatnonzero(w))
+        spread = ", ".join(f"{kept[int(i)]}: {w[i]:.4g}" for i in np.flatnonzero(w))
         raise ModelError(f"{what} would act on several kept bodies or through a ratio after merging "
                          f"({spread or 'on none'}); keep its body (an actuator or sensor reads or "
                          "drives one body, relative to at most one other, with unit ratio)",

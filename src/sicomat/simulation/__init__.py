@@ -11,23 +11,26 @@ import numpy as np
 
 from ..errors import ModelError
 from ..progress import notify
-from .timeseries import TimeSeries, step_metrics
+from .timeseries import TimeSeries, StepMetrics, step_metrics
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
     from ..progress import ProgressCallback
-    from ..motion.setpoints import Profile
+    from ..motion.setpoints import SetpointProfile
 
-__all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs"]
+__all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs",
+           "TimeSeries", "StepMetrics", "step_metrics"]
+# the multi-axis runs (simulate_path, circle_test: simulation/paths.py) are not re-exported here:
+# paths.py uses this module's simulate(), and re-exporting it would knot the two (an import cycle)
 
 
-def loop_program(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True):
+def loop_program(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, nonlinear: bool = True):
     """The hybrid program of ``loop`` following ``profile`` for ``duration`` seconds, and its step count."""
     programs, n_steps = loop_programs([loop], profile, duration, nonlinear=nonlinear)
     return programs[0], n_steps
 
 
-def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
+def loop_programs(loops: Sequence["ServoLoop"], profile: "SetpointProfile", duration: float, *,
                   nonlinear: bool = True, recorded: int | None = None) -> tuple[list, int]:
     """:func:`loop_program` for variants of one loop: the setpoints are sampled once for all.
 
@@ -75,7 +78,7 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "Profile", duration: fl
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
 
 
-def _values_per_step(loop: "ServoLoop", profile: "Profile", nonlinear: bool) -> int:
+def _values_per_step(loop: "ServoLoop", profile: "SetpointProfile", nonlinear: bool) -> int:
     """Values one run of ``loop`` keeps per base step: the recorded slots, the continuous states and
     each friction link's force and stuck flag (the program of a one-sample table tells them)."""
     from ..servo.loop import SetpointTable, servo_program
@@ -96,7 +99,7 @@ def _require_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -
                                               f"and the setpoint table")
 
 
-def simulate(loop: "ServoLoop", profile: "Profile", duration: float, *, nonlinear: bool = True,
+def simulate(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, nonlinear: bool = True,
              progress: "ProgressCallback | None" = None) -> TimeSeries:
     """Simulate the closed loop following a setpoint profile.
 
@@ -199,7 +202,7 @@ class BatchMetrics:
                              "final_error": self.final_error, "diverged": self.diverged})
 
 
-def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: float, *,
+def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", duration: float, *,
                    nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> BatchMetrics:
     """Simulate many variants of one loop (other gains, masses, stiffnesses, limits, ...) in one
     compiled call and return each variant's following-error figures.
@@ -233,5 +236,5 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "Profile", duration: f
     bad = np.concatenate([p.diverged for p in parts]) if len(parts) > 1 else result.diverged
     with np.errstate(invalid="ignore"):
         figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]
-    figures = [np.where(bad, np.nan, f) for f in figures]
-    return BatchMetrics(*figures, diverged=bad, wall_time_s=wall)
+    max_error, rms_error, final_error = (np.where(bad, np.nan, f) for f in figures)
+    return BatchMetrics(max_error, rms_error, final_error, diverged=bad, wall_time_s=wall)

@@ -285,7 +285,7 @@ def _check_step(step: float, levels: int) -> None:
 
 
 def _distinct(parts: Sequence[ContinuousPart],
-              links: Sequence[int] | None) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
+              links: Sequence[int] | np.ndarray | None) -> tuple[list[tuple[np.ndarray, ...]], np.ndarray]:
     """The distinct ``A, B, F, G`` of ``parts`` (after ``links``) and the index of each part's."""
     sel = None if links is None else np.asarray(links, dtype=int)
     if len(parts) == 1:
@@ -304,7 +304,8 @@ def _distinct(parts: Sequence[ContinuousPart],
 
 
 def _discretized(parts: Sequence[ContinuousPart], step: float, levels: int,
-                 links: Sequence[int] | None) -> tuple[np.ndarray, ...]:
+                 links: Sequence[int] | np.ndarray | None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
     """``E`` (see :func:`_zoh`), ``L = [Lx Lu Lf]`` and projections of the distinct parts (leading
     axes ``(part, configuration)``), the index of each part's, and ``nx``.
 
@@ -321,7 +322,7 @@ def _discretized(parts: Sequence[ContinuousPart], step: float, levels: int,
 
 
 def _kernel_layout(parts: Sequence[ContinuousPart], step: float, levels: int,
-                   links: Sequence[int] | None) -> tuple[np.ndarray, ...]:
+                   links: Sequence[int] | np.ndarray | None) -> tuple[np.ndarray, ...]:
     """The discretisation in the kernel's layout: ``[Phi Gamma]ᵀ`` (shape ``(n_distinct, 2**nf,
     levels + 1, nx + nw, nx)``), ``[Lx Lu Lf]``, the projections, for each part the index of its
     discretisation (equal parts share one), and the in-step event bounds ``PsiT, KU, KP, K3, D, pair, GH, kd`` of

@@ -70,7 +70,8 @@ def _fast_blocks(T: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, str]]]
     dist[conj & (lam.imag != 0)[:, None]] = np.inf       # a pair's two members belong together
     if np.any(dist.min(axis=1) <= _CLUSTER * np.abs(lam)):
         return None
-    cols, blocks = [], []
+    cols: list[np.ndarray] = []
+    blocks: list[tuple[int, int, str]] = []
     for i in np.flatnonzero(lam.imag >= 0):
         if lam[i].imag > 0:
             blocks.append((len(cols), 2, "euclid"))
@@ -424,10 +425,10 @@ def _assemble(Z, X, k, lam, V):
     if k:
         bstart[0], bsize[0], bkind[0] = 0, k, _SLOW_BLOCK
         o = 1
-    for b in range(nb):
-        bstart[o + b] = k + fstart[b]
-        bsize[o + b] = fsize[b]
-        bkind[o + b] = _EUCLID_BLOCK if fast_ok else _GENERAL_BLOCK
+    for j in range(nb):
+        bstart[o + j] = k + fstart[j]
+        bsize[o + j] = fsize[j]
+        bkind[o + j] = _EUCLID_BLOCK if fast_ok else _GENERAL_BLOCK
     return S, Y, bstart, bsize, bkind
 
 

@@ -53,12 +53,17 @@ class SimulationDiverged(SicomatError, ArithmeticError):
         Base step index of that time.
     variant : int or None
         Index of the diverged variant in :func:`run_batch`, else None.
+    axis : str or None
+        The machine axis that diverged, when a multi-axis run (:func:`sicomat.simulation.paths.simulate_path`)
+        knows it, else None.
     """
 
-    def __init__(self, message: str, *, time: float, step: int, variant: int | None = None) -> None:
+    def __init__(self, message: str, *, time: float, step: int, variant: int | None = None,
+                 axis: str | None = None) -> None:
         self.time = time
         self.step = step
         self.variant = variant
+        self.axis = axis
         super().__init__(message)
 
 
@@ -1081,7 +1086,7 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
         out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"], rec,
         x_final, status, k_bad)
     diverged_step = np.where(status != _OK, k_bad, -1)
-    for v in np.flatnonzero(status != _OK):
+    for v in np.flatnonzero(status != _OK).tolist():
         if on_divergence == "raise":
             raise _diverged(int(status[v]), int(k_bad[v]), step, int(v))
         rec[v, -(-int(k_bad[v]) // every):] = 0.0

@@ -169,6 +169,7 @@ def lower_ops(ops, blocks: list[tuple[int, ...]], n_columns: int, flat: Flat):
         periods.append(period)
         phases.append(int(op.phase))
         fp: tuple = ()
+        ip: tuple[int, ...]
         if isinstance(op, (LinearOutput, LinearUpdate)):
             if not 0 <= op.block < n_blocks:
                 raise ModelError(f"op {o}: no block {op.block} ({n_blocks} blocks)")

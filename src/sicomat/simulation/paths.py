@@ -193,16 +193,15 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
     wall = 0.0
     for k, name in enumerate(names):
         loop = build_servo_loop(machine, mapping[name])
-        setpoint = samples.axis_setpoint(k)
+        axis_setpoint = samples.axis_setpoint(k)
         try:
-            series = simulate(loop, setpoint, duration, nonlinear=nonlinear, progress=progress)
+            series = simulate(loop, axis_setpoint, duration, nonlinear=nonlinear, progress=progress)
         except SimulationDiverged as exc:
-            error = SimulationDiverged(f"axis {mapping[name]}: {exc}", time=exc.time, step=exc.step)
-            error.axis = mapping[name]
-            raise error from None
+            raise SimulationDiverged(f"axis {mapping[name]}: {exc}", time=exc.time, step=exc.step,
+                                     axis=mapping[name]) from None
         wall += series.info["wall_time_s"]
         runs[name] = series
-        verdicts[name] = simulation_verdict(loop, series, setpoint)
+        verdicts[name] = simulation_verdict(loop, series, axis_setpoint)
     first = runs[names[0]]
     t = first.time
     setpoint = np.empty((t.size, len(names)))
@@ -214,9 +213,9 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
         actual[:, k] = offset + np.interp(t, series.time, series["tool.position"])
     s = samples.profile.evaluate(t)[0]
     start = _time.perf_counter()
-    error = contour_error(path, actual, s_hint=s)
+    contour = contour_error(path, actual, s_hint=s)
     return PathRun(path=path, samples=samples, axes=runs, time=t, s=s, setpoint=setpoint, actual=actual,
-                   contour_error=error,
+                   contour_error=contour,
                    info={"wall_time_s": wall + (_time.perf_counter() - start), "step": first.info["step"],
                          "machine_axes": mapping}, verdicts=verdicts)
 
@@ -269,7 +268,7 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
     period = first.controller.position_period if first.controller is not None else 1e-3
     samples = interpolate(path, feed, acc, jerk, period)
     mapping = {name: axis_for(machine, name) for name in path.axis_names}
-    about = {"feedforward": feedforward or "model", "radius": float(radius), "feed": float(feed),
+    about: dict[str, Any] = {"feedforward": feedforward or "model", "radius": float(radius), "feed": float(feed),
              "clockwise": bool(clockwise), "machine_axes": mapping}
     verdict = axes_verdict(machine, path.axis_names)
     if verdict.stable is False:       # the figures of an unstable axis mean nothing: do not simulate

@@ -41,7 +41,7 @@ def step_metrics(time: np.ndarray, setpoint: np.ndarray, actual: np.ndarray, dis
     which ``actual`` stays within ``band``·|distance| of the final setpoint.
     """
     error = setpoint - actual
-    metrics = dict(max_following_error=float(np.max(np.abs(error))),
+    metrics: dict[str, Any] = dict(max_following_error=float(np.max(np.abs(error))),
                    rms_following_error=float(np.sqrt(np.mean(error ** 2))),
                    final_error=float(error[-1]), overshoot_percent=0.0, rise_time=None, settling_time=None)
     if distance != 0:

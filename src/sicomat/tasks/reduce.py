@@ -220,6 +220,7 @@ def reduce_command(machine: "Machine", axis: str | None, method: str, order: int
         if method == "physical":
             result = physical_reduction(ax.mechanics, keep_list, order=order, band_hz=band_hz, tool=_tool(ax),
                                         inputs=ins, outputs=outs)
+            assert result.spec is not None   # a physical reduction always gives the reduced mechanics table
             return dataclasses.replace(result, machine=reduced_machine(machine, name, result.spec,
                                                                        merged_into=result.merged_into),
                                        notes=(*notes, *result.notes))
@@ -237,20 +238,19 @@ def reduce_command(machine: "Machine", axis: str | None, method: str, order: int
                                  f"the modes up to twice it are kept: {order} states")
             else:
                 order = min(_order_for_band(plant, band_hz), plant.n_states)
-        io = {"inputs": ins, "outputs": outs}
         if method == "modal":
-            result = modal_truncation(plant, order, band_hz=band_hz, **io)
+            result = modal_truncation(plant, order, band_hz=band_hz, inputs=ins, outputs=outs)
         elif method == "balanced":
             if gramian_band is not None:
-                result = bal.frequency_limited_truncation(plant, order, gramian_band, **io)
+                result = bal.frequency_limited_truncation(plant, order, gramian_band, inputs=ins, outputs=outs)
             else:
-                result = bal.balanced_truncation(plant, order, band_hz=band_hz, **io)
+                result = bal.balanced_truncation(plant, order, band_hz=band_hz, inputs=ins, outputs=outs)
         elif method == "balanced-dc":
-            result = bal.balanced_truncation(plant, order, match_dc=True, band_hz=band_hz, **io)
+            result = bal.balanced_truncation(plant, order, match_dc=True, band_hz=band_hz, inputs=ins, outputs=outs)
         elif method == "schur":
-            result = bal.schur_truncation(plant, order, band_hz=band_hz, **io)
+            result = bal.schur_truncation(plant, order, band_hz=band_hz, inputs=ins, outputs=outs)
         else:
-            result = bal.hankel_norm_approximation(plant, order, band_hz=band_hz, **io)
+            result = bal.hankel_norm_approximation(plant, order, band_hz=band_hz, inputs=ins, outputs=outs)
         return dataclasses.replace(result, notes=(*notes, *result.notes))
     except ModelError as exc:
         if exc.source is None and exc.path in _OPTION:
@@ -272,6 +272,9 @@ def write_reduced(result: "ReductionResult", path: "str | os.PathLike", based_on
     """
     from ..io.modelfile import save_model
 
+    if result.machine is None:
+        raise ModelError("only the physical method gives a model file; the others give a state space",
+                         source="--write", value=str(path))
     header = None
     if based_on is not None:
         onto = ", ".join(result.spec.bodies) if result.spec is not None else "fewer bodies"

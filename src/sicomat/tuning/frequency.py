@@ -211,6 +211,8 @@ def rigid_position_gain(m_rigid: float, kp: float, ti: float, velocity_delay: fl
         return np.angle(_rigid_velocity_closed(w, m_rigid, kp, ti, velocity_delay)) - np.pi / 2 - w * position_delay
 
     if crossover is None:
+        if phase_margin_deg is None:
+            raise ValueError("rigid_position_gain needs phase_margin_deg or crossover")
         target = -np.pi + phase_margin_deg * _DEG
         grid = np.logspace(-2, 5, 2000)
         values = np.unwrap(phase(grid)) - target
@@ -342,7 +344,7 @@ def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, s
     _check_targets(loop, targets)
     m = loop.m_rigid
     tau = equivalent_delay(loop)
-    kp0, ti0 = rigid_velocity_pi(m, targets.velocity_crossover, targets.velocity_phase_margin, tau)
+    kp0, ti0 = rigid_velocity_pi(m, _resolved(targets.velocity_crossover), targets.velocity_phase_margin, tau)
     kv0 = rigid_position_gain(m, kp0, ti0, tau, _position_equivalent_delay(loop),
                               targets.position_phase_margin, targets.position_crossover)
     initial = Gains(kp0, kp0 / m, ti0, kv0)
@@ -361,11 +363,19 @@ def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, s
     return replace(result, wall_time_s=time.perf_counter() - start)
 
 
+def _resolved(value: float | None) -> float:
+    """A target that :func:`tune_frequency` has completed (the velocity crossover) or that
+    :func:`_check_targets` has required (the position phase margin when no position crossover is given)."""
+    if value is None:  # pragma: no cover - unreachable after tune_frequency's first lines
+        raise AnalysisError("a tuning target was used before it was resolved")
+    return value
+
+
 def _check_targets(loop: "ServoLoop", t: TuningTargets) -> None:
     ctrl = loop.controller
     nyq_v = np.pi / ctrl.velocity_period if ctrl.velocity_loop == "discrete" else np.inf
     nyq_p = np.pi / ctrl.position_period if ctrl.position_loop == "discrete" else np.inf
-    if not 0 < t.velocity_crossover < nyq_v:
+    if not 0 < _resolved(t.velocity_crossover) < nyq_v:
         raise ModelError(f"the velocity crossover must be between 0 and the velocity loop's Nyquist frequency "
                          f"{nyq_v:.4g} rad/s", path="--velocity-crossover", value=t.velocity_crossover)
     if not 0 < t.velocity_phase_margin < 90:
@@ -382,7 +392,7 @@ def _check_targets(loop: "ServoLoop", t: TuningTargets) -> None:
 def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: float, progress=None,
             task: str = "tuning on the complete model") -> TuningResult:
     ev = _Evaluator(loop, progress=progress, task=task)
-    wv, pmv, gmin = targets.velocity_crossover, targets.velocity_phase_margin, targets.min_gain_margin
+    wv, pmv, gmin = _resolved(targets.velocity_crossover), targets.velocity_phase_margin, targets.min_gain_margin
 
     def cost_velocity(x, gain_criterion: bool) -> float:
         kp, ti = initial.Kp * np.exp(x[0]), initial.Ti * np.exp(x[1])
@@ -426,7 +436,7 @@ def _tune_position(ev: _Evaluator, base: np.ndarray, kv0: float, t: TuningTarget
         q = ev.position(base, np.exp(log_kv))
         if t.position_crossover is not None:
             return np.log(max(q.crossover, 1e-9) / t.position_crossover)
-        return t.position_phase_margin - q.phase_margin   # grows with Kv
+        return _resolved(t.position_phase_margin) - q.phase_margin   # grows with Kv
 
     # scan upwards from a small gain: the first change of sign is the root (further up, the phase
     # wraps and the mismatch jumps, which a bracketing solver would mistake for a root)
@@ -448,12 +458,12 @@ def _unmet(t: TuningTargets, a: Achieved) -> list[str]:
     unmet = []
     if abs(a.velocity_phase_margin_deg - t.velocity_phase_margin) > t.tolerance_deg:
         unmet.append(f"velocity phase margin {a.velocity_phase_margin_deg:.1f}° instead of {t.velocity_phase_margin:g}°")
-    if abs(a.velocity_crossover_rad_s / t.velocity_crossover - 1) > t.tolerance_rel:
+    if abs(a.velocity_crossover_rad_s / _resolved(t.velocity_crossover) - 1) > t.tolerance_rel:
         unmet.append(f"velocity crossover {a.velocity_crossover_rad_s:.1f} rad/s instead of {t.velocity_crossover:.1f}")
     if t.position_crossover is not None:
         if abs(a.position_crossover_rad_s / t.position_crossover - 1) > t.tolerance_rel:
             unmet.append(f"position crossover {a.position_crossover_rad_s:.1f} rad/s instead of {t.position_crossover:.1f}")
-    elif abs(a.position_phase_margin_deg - t.position_phase_margin) > t.tolerance_deg:
+    elif abs(a.position_phase_margin_deg - _resolved(t.position_phase_margin)) > t.tolerance_deg:
         unmet.append(f"position phase margin {a.position_phase_margin_deg:.1f}° instead of {t.position_phase_margin:g}°")
     # every crossover, not only the main one, must keep the margin asked for (resonances crossing 0 dB)
     for name, worst, asked in (("velocity", a.velocity_worst_phase_margin_deg, t.velocity_phase_margin),

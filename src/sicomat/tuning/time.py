@@ -147,7 +147,7 @@ class TimeTuningResult:
     wall_time_s: float = 0.0
     notes: tuple[str, ...] = field(default_factory=tuple)
     unmet: tuple[str, ...] = ()
-    margins: dict[str, float] = field(default_factory=dict)
+    margins: dict[str, float | None] = field(default_factory=dict)
     stable: bool | None = None
     warnings: tuple[str, ...] = ()
 
@@ -269,11 +269,13 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None, *,
                             + verdict.warnings)
 
 
-def _margin_check(an: LoopAnalysis, kp: float, ti: float, kv: float, t: TimeTargets) -> tuple[dict[str, float], list[str]]:
-    """The tuned loop's margins as ``sicomat margins`` reports them, and the floors they miss."""
+def _margin_check(an: LoopAnalysis, kp: float, ti: float, kv: float, t: TimeTargets) -> tuple[dict[str, float | None], list[str]]:
+    """The tuned loop's margins as ``sicomat margins`` reports them (None: no crossover), and the floors
+    they miss."""
     from ..frequency.margins import stability_margins
 
-    out, unmet = {}, []
+    out: dict[str, float | None] = {}
+    unmet: list[str] = []
     for name in ("velocity", "position"):
         m = stability_margins(an.response(f"{name}-open", Kp=kp, Ti=ti, Kv=kv))
         gm, pm = m.gain_margin_db, m.phase_margin_deg
