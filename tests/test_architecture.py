@@ -253,10 +253,6 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 # Import cycles of today, each with why (the test fails on a new one and on one that is gone).
 KNOWN_CYCLES: dict[tuple[str, ...], str] = {
-    ("sicomat.mechanics.conditioning", "sicomat.mechanics.lumped", "sicomat.mechanics.modal",
-     "sicomat.mechanics.statespace"):
-        "Mechanics' methods (state_space, modes) and build_mechanics import the modules that import "
-        "Mechanics: helper B (one (M, D, K) assembler) reshapes them",
     ("sicomat.reduction.error", "sicomat.reduction.modal"):
         "the reduction's error measures use the modal split and modal truncation uses the error "
         "measures (issue 11's 'import knots'): helper A's one frequency-response evaluator removes it",
@@ -339,7 +335,6 @@ LONG_MODULES: dict[str, str] = {
     "sicomat.reduction.modal": "modal truncation on an ordered real Schur form (the rigid/flexible split)",
     "sicomat.frequency.margins": "stability margins of a loop gain on a grid (all crossovers) and the bandwidth",
     "sicomat.frequency.loops": "frequency responses of the servo loops with the digital effects exact",
-    "sicomat.motion.path": "multi-axis paths (lines, arcs), the CNC interpolator along them, the circle path",
     "sicomat.tuning.frequency": "the frequency approach of the tuning (rigid closed form, then the complete model)",
     "sicomat.servo.loop": "the servo loop: resolved from the axis description and lowered to a hybrid program",
     "sicomat.cli.main": "the CLI's commands, each delegating to the library",

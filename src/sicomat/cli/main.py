@@ -35,7 +35,7 @@ def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
           json_: bool = JsonOption) -> None:
     """Validate a model file and summarise its axes, dofs and couplings."""
     with guarded(model):
-        from ..mechanics.conditioning import check_axis_mechanics
+        from ..mechanics.lumped import check_axis_mechanics
         from .tables import check_payload, print_check
 
         machine = load(model, set_)
@@ -54,7 +54,7 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
     """Natural frequencies, damping ratios and mode shapes of an axis's mechanics."""
     with guarded(model):
         from ..io.atomic import check_outputs
-        from ..mechanics.conditioning import check_axis_mechanics
+        from ..mechanics.lumped import check_axis_mechanics
         from ..mechanics.modal import modal_analysis
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})

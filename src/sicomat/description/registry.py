@@ -41,7 +41,8 @@ __all__ = ["KINDS", "MechanicsKind", "SetpointKind", "register", "spec_class", "
 class MechanicsKind(Protocol):
     """A mechanical structure: any description that lowers to the general lumped form."""
 
-    type: str
+    @property
+    def type(self) -> str: ...  # the model file's ``type`` (a Literal on each class)
 
     def to_lumped(self) -> "LumpedSpec":
         """The same mechanics as a :class:`~sicomat.description.mechanics.LumpedSpec`."""
@@ -57,8 +58,11 @@ class SetpointKind(Protocol):
     :mod:`sicomat.motion.setpoints` (the description never imports the runtime).
     """
 
-    type: str
-    start: float
+    @property
+    def type(self) -> str: ...  # the model file's ``type`` (a Literal on each class)
+
+    @property
+    def start(self) -> float: ...
 
 
 KINDS: dict[str, tuple[str, type]] = {
@@ -146,7 +150,7 @@ def spec_union(kind: str) -> Any:
     if not classes:
         raise ValueError(f"no {kind} type is registered")
     _SEALED.add(kind)
-    member = classes[0] if len(classes) == 1 else Union[classes]  # type: ignore[valid-type]
+    member = classes[0] if len(classes) == 1 else Union[classes]
     return Annotated[member, Field(discriminator="type")]
 
 

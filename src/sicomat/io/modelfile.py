@@ -308,7 +308,7 @@ def _translate(exc: ValidationError, source: str | None) -> ModelError:
         message = f"unknown type; expected one of {ctx.get('expected_tags')}"
         value = ctx.get("tag", value)
     elif kind == "union_tag_not_found":
-        tags = _UNION_TAGS.get(loc[-1] if loc else "", set())
+        tags: tuple[str, ...] = _UNION_TAGS.get(loc[-1] if loc else "", ())
         message, has_value = f"missing key 'type'; expected one of {', '.join(sorted(tags))}", False
     elif kind == "string_pattern_mismatch":
         message = "expected a name made of letters, digits, '_' or '-', starting with a letter"

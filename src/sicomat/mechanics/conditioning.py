@@ -30,7 +30,7 @@ from ..errors import ModelError
 if TYPE_CHECKING:  # pragma: no cover
     from .lumped import Mechanics
 
-__all__ = ["check_numeric_range", "check_resolvable", "check_axis_mechanics", "COEFFICIENT_RANGE"]
+__all__ = ["check_numeric_range", "check_resolvable", "COEFFICIENT_RANGE"]
 
 EPS = float(np.finfo(float).eps)
 COEFFICIENT_RANGE = (1e-100, 1e100)   # as sicomat.description.units.MAGNITUDES, for mechanics built in Python
@@ -87,16 +87,3 @@ def check_resolvable(mech: "Mechanics") -> None:
                          "make the stiff coupling rigid (merge its bodies) or bring the values closer",
                          path=f"mechanics.couplings.{a}.stiffness")
 
-
-def check_axis_mechanics(axis: str, spec) -> "Mechanics":
-    """The mechanics of axis ``axis`` built from ``spec`` and checked (range and resolvable poles),
-    an error located at ``axes.<axis>.mechanics...``."""
-    from .lumped import build_mechanics
-
-    try:
-        mech = build_mechanics(spec)
-        check_resolvable(mech)
-    except ModelError as exc:
-        raise ModelError(exc.message, path=f"axes.{axis}.{exc.path}" if exc.path else f"axes.{axis}",
-                         value=exc.value, has_value=exc.has_value) from None
-    return mech

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..description.mechanics import GROUND, LumpedSpec, resolve_stretch
 from ..errors import ModelError
+from .conditioning import check_numeric_range, check_resolvable
 from .statespace import MassFactor
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -17,7 +18,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..description.registry import MechanicsKind
     from ..lti.plant import Plant
 
-__all__ = ["Dof", "Link", "Load", "Measurement", "Mechanics", "build_mechanics"]
+__all__ = ["Dof", "Link", "Load", "Measurement", "Mechanics", "build_mechanics", "check_axis_mechanics"]
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -341,7 +342,6 @@ def build_mechanics(spec: "MechanicsKind") -> Mechanics:
         sensors.append(Measurement(name, _frozen(vector), sensor.kind, dofs[index[sensor.body]].kind,
                                    step=sensor.step))
 
-    from .conditioning import check_numeric_range
 
     check_numeric_range({**{f"bodies.{name}.{'mass' if body.mass is not None else 'inertia'}": body.value
                             for name, body in lumped.bodies.items()},
@@ -353,4 +353,16 @@ def build_mechanics(spec: "MechanicsKind") -> Mechanics:
     mech = Mechanics(dofs=dofs, mass=mass, damping=damping, stiffness=stiffness,
                      actuators=tuple(actuators), sensors=tuple(sensors),
                      couplings=couplings, frictions=frictions)
+    return mech
+
+
+def check_axis_mechanics(axis: str, spec) -> "Mechanics":
+    """The mechanics of axis ``axis`` built from ``spec`` and checked (range and resolvable poles),
+    an error located at ``axes.<axis>.mechanics...``."""
+    try:
+        mech = build_mechanics(spec)
+        check_resolvable(mech)
+    except ModelError as exc:
+        raise ModelError(exc.message, path=f"axes.{axis}.{exc.path}" if exc.path else f"axes.{axis}",
+                         value=exc.value, has_value=exc.has_value) from None
     return mech

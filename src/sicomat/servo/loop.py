@@ -104,7 +104,7 @@ def build_servo_loop(machine: "Machine", axis: str | None = None) -> ServoLoop:
         missing = "controller" if spec.controller is None else "drive"
         raise ModelError(f"the axis has no {missing}; a servo loop needs [axes.{name}.drive] and "
                          f"[axes.{name}.controller]", path=f"axes.{name}.{missing}")
-    from ..mechanics.conditioning import check_axis_mechanics
+    from ..mechanics.lumped import check_axis_mechanics
 
     mech = check_axis_mechanics(name, spec.mechanics)   # the loop's analyses need resolvable poles
     if not mech.actuators:

@@ -204,7 +204,7 @@ def reduce_command(machine: "Machine", axis: str | None, method: str, order: int
                          source="--keep", value=",".join(keep_list))
     name = machine.axis_name(axis)
     ax = machine.axes[name]
-    from ..mechanics.conditioning import check_axis_mechanics
+    from ..mechanics.lumped import check_axis_mechanics
 
     check_axis_mechanics(name, ax.mechanics)     # a reduction of unresolvable poles means nothing
     ins, outs = parse_signals(inputs, "--inputs"), parse_signals(outputs, "--outputs")
