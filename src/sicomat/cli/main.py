@@ -462,9 +462,9 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         payload = {"axis": servo.axis, "loop": loop, "Kp": Kp, "Kp_normalized": Kp / servo.m_rigid, "Kp_si": Kp,
                    "Ti": Ti, "Kv": Kv, **response.to_dict(), **verdict.to_dict()}
         if plot is not None:
-            from ..plots.base import plot_step, save_figure
+            from ..plots.base import save_figure
 
-            save_figure(plot_step(response, f"{loop} loop step response"), plot)
+            save_figure(response.plot(f"{loop} loop step response"), plot)
         if json_:
             emit_json(payload)
         else:

@@ -89,7 +89,7 @@ class PathRun:
     def plot(self, magnification: float | None = None):
         """The path and the actual trace in the plane (the deviation magnified: automatic by default),
         and the contour error against time."""
-        from ..plots.base import plot_path_run
+        from ..plots.motion import plot_path_run
 
         return plot_path_run(self, magnification)
 
