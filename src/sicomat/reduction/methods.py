@@ -27,10 +27,6 @@ METHODS = ("modal", "balanced", "balanced-dc", "schur", "hankel", "physical")
 band is given, ``balanced-dc`` is the singular-perturbation variant (keeps the static gain),
 ``schur`` the balancing-free Schur method, ``hankel`` the optimal Hankel-norm approximation."""
 
-PARAMETERS = ("order", "keep", "band", "method", "inputs", "outputs")
-"""The parameters of :func:`reduce` its errors are located at (``ModelError.path``)."""
-
-
 def names(value: str | Sequence[str] | None, parameter: str, empty: str) -> list[str] | None:
     """Comma-separated names (a string or a list of them, each possibly comma-separated) as a list;
     ``None`` stays ``None``; no name at all is an error located at ``parameter``.

@@ -12,7 +12,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -105,7 +105,6 @@ class TuningResult:
     with_notch: "TuningResult | None" = None
     evaluations: int = 0
     wall_time_s: float = 0.0
-    history: tuple[dict[str, float], ...] = field(default_factory=tuple, repr=False)
     stable: bool | None = None
     stability_warnings: tuple[str, ...] = ()
 
