@@ -46,7 +46,10 @@ _EXPORTS: dict[str, str] = {
     "ServoLoop": "servo", "build_servo_loop": "servo", "Verdict": "servo", "loop_verdict": "servo",
     # simulation
     "simulate": "simulation", "simulate_batch": "simulation", "TimeSeries": "simulation", "StepMetrics": "simulation",
-    "simulate_path": "simulation", "circle_test": "simulation", "PathRun": "simulation", "CircleTest": "simulation",
+    "StepFigures": "simulation", "step_figures": "simulation",
+    # (the paths module imports servo/: not imported by the simulation package itself)
+    "simulate_path": "simulation.paths", "circle_test": "simulation.paths", "PathRun": "simulation.paths",
+    "CircleTest": "simulation.paths",
     # frequency
     "LoopAnalysis": "frequency", "Margins": "frequency",
     "stability_margins": "frequency", "closed_loop": "frequency", "sensitivity": "frequency",
@@ -86,5 +89,6 @@ if TYPE_CHECKING:  # the static view of the same names (mypy, IDEs)
     from .motion import (Profile, profile_from_spec, ramp_profile, scurve_profile, step_profile, trapezoid_profile)
     from .reduction import ReductionResult, balanced_truncation, modal_truncation, physical_reduction, reduce
     from .servo import ServoLoop, Verdict, build_servo_loop, loop_verdict
-    from .simulation import (CircleTest, PathRun, StepMetrics, TimeSeries, circle_test, simulate, simulate_batch, simulate_path)
+    from .simulation import StepFigures, StepMetrics, TimeSeries, simulate, simulate_batch, step_figures
+    from .simulation.paths import CircleTest, PathRun, circle_test, simulate_path
     from .tuning import TimeTargets, TimeTuningResult, TuningResult, TuningTargets, tune_frequency, tune_time
