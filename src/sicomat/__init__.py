@@ -7,7 +7,8 @@ The pipeline's verbs and results, stage by stage (``docs/architecture.md``)::
     modes = sicomat.modal_analysis(mech)
     loop = sicomat.build_servo_loop(machine.axis())                  # servo
     run = sicomat.simulate(loop, sicomat.step_profile(1e-3), 0.1)    # simulation
-    margins = sicomat.stability_margins(sicomat.LoopAnalysis(loop).frequency_response("velocity-open"))
+    margins = sicomat.stability_margins(sicomat.loop_response(loop, "velocity-open"))   # frequency
+    reduced = sicomat.reduce(machine, "balanced", order=4)           # reduction
 
 Names are imported on first use (PEP 562), so ``import sicomat`` stays light (no numba, no scipy until
 asked) and the command line starts fast; each stage's subpackage re-exports its own public names.
@@ -45,18 +46,20 @@ _EXPORTS: dict[str, str] = {
     "ServoLoop": "servo", "build_servo_loop": "servo", "Verdict": "servo", "loop_verdict": "servo",
     # simulation
     "simulate": "simulation", "simulate_batch": "simulation", "TimeSeries": "simulation", "StepMetrics": "simulation",
+    "StepFigures": "simulation", "step_figures": "simulation",
+    # (the paths module imports servo/: not imported by the simulation package itself)
     "simulate_path": "simulation.paths", "circle_test": "simulation.paths", "PathRun": "simulation.paths",
     "CircleTest": "simulation.paths",
     # frequency
     "LoopAnalysis": "frequency", "Margins": "frequency",
     "stability_margins": "frequency", "closed_loop": "frequency", "sensitivity": "frequency",
-    "closed_loop_bandwidth": "frequency",
+    "closed_loop_bandwidth": "frequency", "loop_response": "frequency",
     # tuning
     "tune_frequency": "tuning", "tune_time": "tuning", "TuningResult": "tuning", "TimeTuningResult": "tuning",
     "TuningTargets": "tuning", "TimeTargets": "tuning",
     # reduction
     "ReductionResult": "reduction", "modal_truncation": "reduction",
-    "balanced_truncation": "reduction", "physical_reduction": "reduction",
+    "balanced_truncation": "reduction", "physical_reduction": "reduction", "reduce": "reduction",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -79,13 +82,13 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # the static view of the same names (mypy, IDEs)
     from .description import (Actuator, Axis, BeltRackSpec, Body, ChainSpec, ControllerSpec, Coupling, DriveSpec, Friction, LumpedSpec, Machine, Sensor)
     from .errors import AnalysisError, ModelError, OutputError, ResourceError, SicomatError
-    from .frequency import (LoopAnalysis, Margins, closed_loop, closed_loop_bandwidth, sensitivity, stability_margins)
+    from .frequency import (LoopAnalysis, Margins, closed_loop, closed_loop_bandwidth, loop_response, sensitivity, stability_margins)
     from .io import dump_model, load_model, machine_from_dict, save_model, with_overrides
     from .lti import FrequencyResponse, Plant
     from .mechanics import Dof, Mechanics, ModalResult, Mode, build_mechanics, mechanics_plant, modal_analysis
     from .motion import (Profile, profile_from_spec, ramp_profile, scurve_profile, step_profile, trapezoid_profile)
-    from .reduction import ReductionResult, balanced_truncation, modal_truncation, physical_reduction
+    from .reduction import ReductionResult, balanced_truncation, modal_truncation, physical_reduction, reduce
     from .servo import ServoLoop, Verdict, build_servo_loop, loop_verdict
-    from .simulation import StepMetrics, TimeSeries, simulate, simulate_batch
+    from .simulation import StepFigures, StepMetrics, TimeSeries, simulate, simulate_batch, step_figures
     from .simulation.paths import CircleTest, PathRun, circle_test, simulate_path
     from .tuning import TimeTargets, TimeTuningResult, TuningResult, TuningTargets, tune_frequency, tune_time

@@ -13,7 +13,18 @@ import typer
 import typer.core
 
 __all__ = ["SetOption", "JsonOption", "AxisOption", "PlotOption", "guarded", "emit_json", "load", "number",
-           "OneLineErrors", "EXIT_UNSTABLE", "exit_for"]
+           "OneLineErrors", "EXIT_UNSTABLE", "exit_for", "OPTIONS", "magnification_option"]
+
+OPTIONS = {
+    "order": "--order", "keep": "--keep", "band": "--band", "method": "--method", "inputs": "--inputs",
+    "outputs": "--outputs", "which": "--loop", "velocity_crossover": "--velocity-crossover",
+    "velocity_phase_margin": "--velocity-phase-margin", "position_crossover": "--position-crossover",
+    "position_phase_margin": "--position-phase-margin", "radius": "--radius", "feed": "--feed",
+    "feed_mm_min": "--feed", "feedforward": "--feedforward", "step_mm": "--step", "move_mm": "--move",
+}
+"""The library's parameter (``ModelError.path`` of an error raised without a ``source``) -> the option
+that gives it: the core and ``tasks/`` name parameters, never options; :func:`guarded` locates their
+errors at the option, so that the message names what the user typed."""
 
 EXIT_UNSTABLE = 3
 """Exit status when the result is meaningless: the loop is unstable or its simulation diverged (the
@@ -69,6 +80,16 @@ def number(*, gt: float | None = None, ge: float | None = None, lt: float | None
     return check
 
 
+def magnification_option(ctx: typer.Context, param: typer.CallbackParam, value: Any) -> Any:
+    """The ``callback`` of ``simulate --magnification``: a finite factor > 0 (or absent: automatic)."""
+    if value is not None and not ctx.resilient_parsing and not 0.0 < value < float("inf"):
+        from ..errors import ModelError
+
+        _fail(str(ModelError("expected a finite factor > 0 (or leave it out: automatic)", source="--magnification",
+                             value=value)))
+    return value
+
+
 class OneLineErrors(typer.core.TyperGroup):
     """The program's command group: a usage error (unknown option, a value that is not a number, a
     missing argument) is one line on stderr and exit status 2, like every other bad input, instead of
@@ -110,6 +131,8 @@ def guarded(source: Path | None = None) -> Iterator[None]:
     try:
         yield
     except ModelError as exc:
+        if exc.source is None and exc.path in OPTIONS:
+            exc = ModelError(exc.message, source=OPTIONS[exc.path], value=exc.value, has_value=exc.has_value)
         _fail(str(exc.with_source(str(source)) if exc.source is None and source is not None else exc))
     except SicomatError as exc:
         _fail(str(exc))

@@ -7,7 +7,8 @@ from typing import List, Optional
 
 import typer
 
-from ._common import (AxisOption, JsonOption, OneLineErrors, PlotOption, SetOption, emit_json, exit_for, guarded, load, number)
+from ._common import (AxisOption, JsonOption, OneLineErrors, PlotOption, SetOption, emit_json, exit_for, guarded, load,
+                      magnification_option, number)
 from .progress import progress_bar
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, cls=OneLineErrors,
@@ -96,7 +97,7 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                                   callback=number(gt=0, unit="mm/min"),
                                                   help="Override the G-code feed rate (mm/min)."),
              linear: bool = typer.Option(False, "--linear", help="Drop limits, quantizers and Coulomb friction."),
-             magnification: Optional[float] = typer.Option(None, "--magnification",
+             magnification: Optional[float] = typer.Option(None, "--magnification", callback=magnification_option,
                                                            help="Scale of the contour error in the --gcode plot "
                                                                 "(default: automatic, shown on the plot)."),
              out: Optional[Path] = typer.Option(None, "--out", help="Write every signal to this CSV file.",
@@ -108,12 +109,16 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         from ..servo.loop import build_servo_loop
         from ..simulation import simulate as run_simulation
         from ..io.atomic import check_outputs
-        from ..tasks.simulate import check_magnification, choose_profile, simulate_payload
+        from ..errors import ModelError
+        from ..tasks.simulate import choose_profile, simulate_payload
 
-        check_magnification(magnification)
         check_outputs({"--out": (out, "csv"), "--plot": (plot, "figure")},
                       {"the model file": model, "the G-code file (--gcode)": gcode})
         machine = load(model, set_)
+        if gcode is not None and (step is not None or move is not None):
+            raise ModelError("--gcode cannot be combined with --step or --move", source="options")
+        if gcode is None and step is not None and move is not None:
+            raise ModelError("give either --step or --move, not both", source="options")
         if gcode is not None:
             from ..tasks.simulate import simulate_gcode
 
@@ -143,6 +148,9 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         from ..tasks.simulate import diverged_payload
 
         loop = build_servo_loop(machine, axis)
+        if step is None and move is None and machine.axes[loop.axis].trajectory is None:
+            raise ModelError("no setpoint: give --step MM or --move MM, or add a [axes.<name>.trajectory] table",
+                             source="options")
         profile, default_duration = choose_profile(machine.axes[loop.axis].trajectory, step, move,
                                                    max_velocity, max_acceleration)
         try:
@@ -396,6 +404,12 @@ def reduce(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
         if method not in METHODS:
             raise ModelError(f"expected one of {', '.join(METHODS)}", source="--method", value=method)
+        if keep is not None and method != "physical":
+            from ..tasks.reduce import parse_band, parse_keep
+
+            parse_band(band)
+            raise ModelError("--keep names bodies for --method physical; give --order N for this method",
+                             source="--keep", value=",".join(parse_keep(keep) or []))
         if write is not None and method != "physical":
             raise ModelError("only the physical method gives a model file; the others give a state space",
                              source="--write", value=str(write))
@@ -462,9 +476,9 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         payload = {"axis": servo.axis, "loop": loop, "Kp": Kp, "Kp_normalized": Kp / servo.m_rigid, "Kp_si": Kp,
                    "Ti": Ti, "Kv": Kv, **response.to_dict(), **verdict.to_dict()}
         if plot is not None:
-            from ..plots.base import plot_step, save_figure
+            from ..plots.base import save_figure
 
-            save_figure(plot_step(response, f"{loop} loop step response"), plot)
+            save_figure(response.plot(f"{loop} loop step response"), plot)
         if json_:
             emit_json(payload)
         else:

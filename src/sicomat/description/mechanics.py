@@ -273,10 +273,6 @@ class LumpedSpec(Spec):
         """This description as the general lumped form (itself)."""
         return self
 
-    def stretch_kind(self, link: _Link) -> Kind:
-        """Whether ``link`` stretches in translation or rotation (see :class:`Coupling`)."""
-        return resolve_stretch(link.stretch, link.between, {n: b.kind for n, b in self.bodies.items()})
-
 
 def _has_inertia(body: Any) -> bool:
     if isinstance(body, Body):

@@ -304,7 +304,7 @@ class LoopAnalysis:
         Ti = loop.Ti if Ti is None else Ti
         Kv = loop.Kv if Kv is None else Kv
         if which not in LOOPS:
-            raise ModelError(f"unknown loop {which!r}; expected one of {', '.join(LOOPS)}", path="--loop")
+            raise ModelError(f"unknown loop {which!r}; expected one of {', '.join(LOOPS)}", path="which")
         omega = default_omega(loop, which) if omega is None else np.asarray(omega, dtype=float)
         Tv = None if self.analog else ctrl.velocity_period
         Tp = ctrl.position_period if ctrl.position_loop == "discrete" else None

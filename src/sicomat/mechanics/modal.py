@@ -137,7 +137,7 @@ class ModalResult:
 
         Returns the matplotlib ``Figure``.
         """
-        from ..plots.base import plot_modes
+        from ..plots.modes import plot_modes
 
         return plot_modes(self, max_modes=max_modes)
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..lti.response import FrequencyResponse
+from .base import new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -64,7 +65,7 @@ def bode_figure(frfs: FrequencyResponse | Sequence[FrequencyResponse],
     """
     frfs = _as_list(frfs)
     paired = _paired(frfs, margins)
-    fig = _figure(figsize=(8.0, 6.5))
+    fig = new_figure(figsize=(8.0, 6.5))
     ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
     phase_lo, phase_hi = np.inf, -np.inf
     for frf, m in zip(frfs, paired):
@@ -140,7 +141,7 @@ def nichols_figure(frfs: FrequencyResponse | Sequence[FrequencyResponse],
     """
     frfs = _as_list(frfs)
     paired = _paired(frfs, margins)
-    fig = _figure(figsize=(7.5, 6.5))
+    fig = new_figure(figsize=(7.5, 6.5))
     ax = fig.subplots()
     curves = []
     for frf, m in zip(frfs, paired):
@@ -199,12 +200,6 @@ def _declutter(fig: "Figure", ax: "Axes") -> None:
             text.set_visible(False)
         else:
             kept.append(box)
-
-
-def _figure(**kwargs) -> "Figure":
-    from matplotlib.figure import Figure
-
-    return Figure(layout="constrained", **kwargs)
 
 
 def _as_list(frfs) -> list[FrequencyResponse]:

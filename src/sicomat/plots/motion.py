@@ -1,4 +1,4 @@
-"""Figures of setpoints, paths and circle tests (matplotlib Figure, no pyplot). Computing never happens here."""
+"""Figures of setpoints, paths, path runs and circle tests (matplotlib Figure, no pyplot). Computing never happens here."""
 
 from __future__ import annotations
 
@@ -6,6 +6,8 @@ import math
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
+
+from .base import new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -15,13 +17,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..motion import PathSamples
     from ..motion.trajectory import JerkProfile
 
-__all__ = ["plot_circle", "plot_path_samples", "plot_jerk_profile"]
-
-
-def _figure(**kwargs) -> "Figure":
-    from matplotlib.figure import Figure
-
-    return Figure(**kwargs)
+__all__ = ["plot_circle", "plot_path_samples", "plot_jerk_profile", "plot_path_run", "auto_magnification",
+           "magnified_trace"]
 
 
 def _nice_step(span: float) -> float:
@@ -39,11 +36,9 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
 
     The nominal circle is drawn at unit radius and a deviation ``F`` at ``1 + magnification·F/R``;
     the rings are labelled in µm of deviation. By default the magnification is the 1-2-5 value that draws
-    the largest deviation at 8–20 % of the radius (:func:`sicomat.plots.base.auto_magnification`); the
+    the largest deviation at 8–20 % of the radius (:func:`auto_magnification`); the
     factor is in the title and the legend.
     """
-    from .base import auto_magnification
-
     dev, radius = result.radial_deviation, result.radius
     peak = float(np.max(np.abs(dev))) if dev.size else 0.0
     if magnification is None:
@@ -52,7 +47,7 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
     order = np.argsort(result.angle)
     theta = np.append(result.angle[order], result.angle[order][0] + 2 * math.pi)
     rho = 1.0 + scale * np.append(dev[order], dev[order][0])
-    fig = _figure(figsize=(6.4, 6.8), layout="constrained")
+    fig = new_figure(figsize=(6.4, 6.8))
     ax = cast("PolarAxes", fig.add_subplot(projection="polar"))
     circle = np.linspace(0, 2 * math.pi, 361)
     ax.plot(circle, np.ones_like(circle), color="gray", linestyle="--", linewidth=0.8, label="nominal")
@@ -83,7 +78,7 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
 
 def plot_path_samples(samples: "PathSamples") -> "Figure":
     """The path in the plane of its first two axes (mm) and the path velocity (mm/s) against time."""
-    fig = _figure(figsize=(10, 4.5), layout="constrained")
+    fig = new_figure(figsize=(10, 4.5))
     ax1, ax2 = fig.subplots(1, 2)
     names = samples.path.axis_names
     ax1.plot(samples.position[:, 0] * 1e3, samples.position[:, 1] * 1e3, linewidth=1.0)
@@ -104,7 +99,7 @@ def plot_jerk_profile(profile: "JerkProfile", samples: int = 2000) -> "Figure":
     pad = 0.05 * max(end - start, 1e-3)
     t = np.union1d(np.linspace(start - pad, end + pad, samples), profile.breaks)
     pos, vel, acc = profile.evaluate(t)
-    fig = _figure(figsize=(8, 8), layout="constrained")
+    fig = new_figure(figsize=(8, 8))
     axes = fig.subplots(4, 1, sharex=True)
     for ax, values, label in zip(axes, (pos, vel, acc, profile.jerk(t)),
                                  ("position (m)", "velocity (m/s)", "acceleration (m/s²)", "jerk (m/s³)")):
@@ -113,3 +108,79 @@ def plot_jerk_profile(profile: "JerkProfile", samples: int = 2000) -> "Figure":
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("time (s)")
     return fig
+
+
+def plot_path_run(run, magnification: float | None = None) -> "Figure":
+    """The programmed and actual paths in the plane (the deviation magnified) and the contour error.
+
+    The distance from the path (the contour error, not the lag along it) is drawn magnified
+    (:func:`magnified_trace`); by default (``magnification=None``) so that the largest contour error is
+    8–20 % of the path's size, half the diagonal of its bounding box (:func:`auto_magnification`). The
+    factor is in the legend and the title.
+    """
+    import numpy as np
+
+    fig = new_figure(figsize=(10, 4.5))
+    ax1, ax2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.4]})
+    sp, act = run.setpoint, run.actual
+    if magnification is None:
+        size = 0.5 * float(np.linalg.norm(np.ptp(sp[:, :2], axis=0))) if len(sp) else 0.0
+        magnification = auto_magnification(run.max_contour_error, size)
+    shown = magnified_trace(sp, act, magnification)
+    ax1.plot(sp[:, 0] * 1e3, sp[:, 1] * 1e3, label="programmed", linewidth=1.0)
+    ax1.plot(shown[:, 0] * 1e3, shown[:, 1] * 1e3, label=f"actual (contour error ×{magnification:g})", linewidth=0.9)
+    names = run.path.axis_names
+    ax1.set_xlabel(f"{names[0]} (mm)")
+    ax1.set_ylabel(f"{names[1]} (mm)")
+    ax1.set_aspect("equal", adjustable="datalim")
+    ax1.legend(fontsize=8)
+    ax1.grid(True, alpha=0.3)
+    ax2.plot(run.time, np.asarray(run.contour_error) * 1e6, linewidth=1.0)
+    ax2.set_xlabel("time (s)")
+    ax2.set_ylabel("contour error (µm)")
+    ax2.grid(True, alpha=0.3)
+    fig.suptitle(f"max contour error {run.max_contour_error * 1e6:.3g} µm; contour error drawn ×{magnification:g}",
+                 fontsize=10)
+    return fig
+
+
+def auto_magnification(deviation: float, size: float, fraction: float = 0.2) -> float:
+    """The magnification that draws a largest ``deviation`` at most ``fraction`` of the path's ``size``,
+    rounded down to 1, 2 or 5 × 10^k (so the drawn deviation is 8–20 % of the size by default); 1 when
+    there is no deviation, no size, or the deviation is already visible."""
+    import math
+
+    if not (deviation > 0 and size > 0 and math.isfinite(deviation) and math.isfinite(size)):
+        return 1.0
+    raw = fraction * size / deviation
+    if raw <= 1.0:
+        return 1.0
+    exp = math.floor(math.log10(raw))
+    return max(m * 10.0 ** exp for m in (1, 2, 5) if m * 10.0 ** exp <= raw)
+
+
+def magnified_trace(setpoint, actual, magnification: float):
+    """The actual trace with its distance to the programmed one magnified: each actual point is moved
+    away from its foot on the setpoint polyline (the nearest point of the nearest segment) by
+    ``magnification``; a lag along the path is not magnified. The setpoint samples are dense (one per
+    position period), so the polyline is the path to within its chords' sagitta."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    sp, act = np.asarray(setpoint, dtype=float), np.asarray(actual, dtype=float)
+    if magnification == 1.0 or len(sp) < 2:
+        return act
+    nearest = cKDTree(sp).query(act)[1]
+    best = np.full(len(act), np.inf)
+    foot = act.copy()
+    for lo in (nearest - 1, nearest):               # the segments before and after the nearest sample
+        lo = np.clip(lo, 0, len(sp) - 2)
+        a, b = sp[lo], sp[lo + 1]
+        ab = b - a
+        length2 = np.einsum("ij,ij->i", ab, ab)
+        t = np.clip(np.einsum("ij,ij->i", act - a, ab) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+        point = a + t[:, None] * ab
+        dist = np.linalg.norm(act - point, axis=1)
+        better = dist < best
+        best[better], foot[better] = dist[better], point[better]
+    return foot + magnification * (act - foot)

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..progress import notify
-from .timeseries import TimeSeries, StepMetrics, step_metrics
+from .timeseries import StepFigures, StepMetrics, TimeSeries, step_figures, step_metrics
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop

@@ -87,11 +87,6 @@ class Discretization:
     Lf: np.ndarray
     projection: np.ndarray
 
-    @property
-    def n_configurations(self) -> int:
-        """Number of stick configurations, ``2**nf``."""
-        return int(self.Phi.shape[-4])
-
 
 def active_links(part: ContinuousPart) -> np.ndarray:
     """Indices of the friction links that act (``coulomb > 0`` or ``static > 0``).

@@ -89,7 +89,7 @@ class PathRun:
     def plot(self, magnification: float | None = None):
         """The path and the actual trace in the plane (the deviation magnified: automatic by default),
         and the contour error against time."""
-        from ..plots.base import plot_path_run
+        from ..plots.motion import plot_path_run
 
         return plot_path_run(self, magnification)
 
@@ -155,7 +155,7 @@ def with_feedforward(machine: "Machine", mode: str | None) -> "Machine":
     if mode is None:
         return machine
     if mode not in ("on", "off"):
-        raise ModelError("expected 'on' or 'off'", source="--feedforward", value=mode)
+        raise ModelError("expected 'on' or 'off'", path="feedforward", value=mode)
     gain = 1.0 if mode == "on" else 0.0
     axes = {}
     for name, axis in machine.axes.items():
@@ -251,9 +251,9 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
     from ..motion import circle_test_path, interpolate
 
     if not radius > 0:
-        raise ModelError("the radius must be > 0", source="--radius", value=radius)
+        raise ModelError("the radius must be > 0", path="radius", value=radius)
     if not feed > 0:
-        raise ModelError("the feed must be > 0", source="--feed", value=feed)
+        raise ModelError("the feed must be > 0", path="feed", value=feed)
     machine = with_feedforward(machine, feedforward)
     ip = machine.interpolator
     acc = max_acceleration if max_acceleration is not None else ip.max_acceleration
@@ -261,7 +261,7 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
     if feed ** 2 / radius > acc:
         raise ModelError(f"the centripetal acceleration feed²/R = {feed ** 2 / radius:.3g} m/s² exceeds the "
                          f"interpolator's limit {acc:g} m/s²: lower the feed or raise max_acceleration",
-                         source="--feed", value=feed)
+                         path="feed", value=feed)
     test = circle_test_path((0.0, 0.0), radius, clockwise)
     path = test.path
     first = machine.axes[axis_for(machine, axes[0])]

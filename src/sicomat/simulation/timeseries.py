@@ -12,7 +12,7 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     import pandas
 
-__all__ = ["TimeSeries", "StepMetrics", "step_metrics"]
+__all__ = ["TimeSeries", "StepMetrics", "StepFigures", "step_metrics", "step_figures"]
 
 
 @dataclass(frozen=True)
@@ -31,33 +31,81 @@ class StepMetrics:
         return dict(self.__dict__)
 
 
+@dataclass(frozen=True)
+class StepFigures:
+    """The figures of one step response (seconds; overshoot in percent of the step)."""
+
+    overshoot_percent: float
+    rise_time: float | None
+    settling_time: float | None
+
+
+def step_figures(time: np.ndarray, response: np.ndarray, amplitude: float, *, final: float | None = None,
+                 start: float = 0.0, band: float = 0.02) -> StepFigures:
+    """Overshoot, rise time and settling time of a step response: the one definition behind
+    ``simulate``, ``step`` and ``tune --method time``.
+
+    ``response`` starts from 0 and steps by ``amplitude`` (a commanded distance, or the final value
+    of a unit step response); ``final`` is the value it settles to (default ``amplitude``; a move's
+    last setpoint). Definitions, with ``σ = sign(amplitude)``:
+
+    * overshoot: ``max(0, max σ·(response − final)) / |amplitude|`` in percent;
+    * rise time: from the first crossing of 10 % to the first crossing of 90 % of ``amplitude``,
+      each located by linear interpolation between the two samples around it (an error ``O(h²)``
+      in the sample spacing ``h``, against ``O(h)`` for the first sample beyond); ``None`` when one
+      level is never reached;
+    * settling time: the first sample after the last one outside ``band``·|amplitude| of ``final``,
+      minus ``start`` (the time the step is commanded); 0 when never outside, ``None`` when still
+      outside at the last sample.
+
+    A response that does not settle (an unstable loop) has no figures: its caller says so (see
+    :func:`sicomat.tuning.time.velocity_step`). ``amplitude`` must not be 0.
+
+    Examples
+    --------
+    The sampled first-order lag ``1 − exp(−t)``: rise time ``ln 9`` = 2.1972; 2 % settling at
+    ``ln 50`` = 3.9120, i.e. the next sample of the 1 ms grid:
+
+    >>> t = np.linspace(0.0, 10.0, 10001)
+    >>> f = step_figures(t, 1 - np.exp(-t), 1.0)
+    >>> round(f.rise_time, 6), round(f.settling_time, 3), f.overshoot_percent
+    (2.197225, 3.913, 0.0)
+    """
+    time = np.asarray(time, dtype=float)
+    response = np.asarray(response, dtype=float)
+    target = float(amplitude if final is None else final)
+    sign, size = float(np.sign(amplitude)), abs(float(amplitude))
+    overshoot = float(max(0.0, np.max(sign * (response - target)) / size * 100))
+    progress = sign * response / size
+    t10 = _first_crossing(time, progress, 0.1)
+    t90 = _first_crossing(time, progress, 0.9)
+    rise = float(t90 - t10) if t10 is not None and t90 is not None else None
+    outside = np.flatnonzero(np.abs(response - target) > band * size)
+    settling: float | None = None
+    if outside.size == 0:
+        settling = 0.0
+    elif outside[-1] < len(time) - 1:
+        settling = float(time[outside[-1] + 1] - start)
+    return StepFigures(overshoot, rise, settling)
+
+
 def step_metrics(time: np.ndarray, setpoint: np.ndarray, actual: np.ndarray, distance: float,
                  start: float = 0.0, band: float = 0.02) -> StepMetrics:
     """Following error and step-response figures.
 
     ``setpoint`` and ``actual`` are the desired and measured axis positions at ``time``; ``distance``
     the commanded displacement (0 for moves that do not end, e.g. ramps: no overshoot, rise or
-    settling). Rise time is 10 %→90 % of ``distance``; settling time the time after ``start`` from
-    which ``actual`` stays within ``band``·|distance| of the final setpoint.
+    settling). The step figures are :func:`step_figures` of ``actual`` with the final setpoint as
+    final value: rise time 10 %→90 % of ``distance``, settling time after ``start`` within
+    ``band``·|distance| of the final setpoint.
     """
     error = setpoint - actual
     metrics: dict[str, Any] = dict(max_following_error=float(np.max(np.abs(error))),
                    rms_following_error=float(np.sqrt(np.mean(error ** 2))),
                    final_error=float(error[-1]), overshoot_percent=0.0, rise_time=None, settling_time=None)
     if distance != 0:
-        sign = np.sign(distance)
-        target = setpoint[-1]
-        progress = sign * actual / abs(distance)
-        metrics["overshoot_percent"] = float(max(0.0, np.max(sign * (actual - target)) / abs(distance) * 100))
-        t10 = _first_crossing(time, progress, 0.1)
-        t90 = _first_crossing(time, progress, 0.9)
-        if t10 is not None and t90 is not None:
-            metrics["rise_time"] = float(t90 - t10)
-        outside = np.flatnonzero(np.abs(actual - target) > band * abs(distance))
-        if outside.size == 0:
-            metrics["settling_time"] = 0.0
-        elif outside[-1] < len(time) - 1:
-            metrics["settling_time"] = float(time[outside[-1] + 1] - start)
+        figures = step_figures(time, actual, distance, final=setpoint[-1], start=start, band=band)
+        metrics.update(figures.__dict__)
     return StepMetrics(**metrics)
 
 
@@ -113,6 +161,6 @@ class TimeSeries:
 
     def plot(self, signals: list[str] | None = None):
         """Setpoint and position, following error, and effort against time; returns the Figure."""
-        from ..plots.base import plot_timeseries
+        from ..plots.time import plot_timeseries
 
         return plot_timeseries(self, signals)

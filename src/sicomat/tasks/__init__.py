@@ -1,9 +1,10 @@
-"""The verbs that the command line (and later the web workbench and studies) share: options in,
-result objects or JSON payloads out."""
+"""The verbs that the command line (and later the web workbench and studies) share: parameters in,
+result objects or JSON payloads out. No command-line option names here: errors are located at the
+parameter (``ModelError.path``), and the CLI maps each to its option (``sicomat.cli._common.OPTIONS``)."""
 
 from .analysis import bode_payload, margins_payload, write_tuned, response_verdict, verdict_subject
 from .reduce import (reduce_command, write_reduced, parse_band, parse_keep, parse_signals, default_transfer, default_band, METHODS)
-from .simulate import choose_profile, simulate_payload, diverged_payload, check_magnification, STEP_FIGURES
+from .simulate import choose_profile, simulate_payload, diverged_payload, simulate_gcode, STEP_FIGURES
 
 __all__ = [
     "bode_payload",
@@ -22,6 +23,6 @@ __all__ = [
     "choose_profile",
     "simulate_payload",
     "diverged_payload",
-    "check_magnification",
+    "simulate_gcode",
     "STEP_FIGURES",
 ]

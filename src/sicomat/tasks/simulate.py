@@ -1,4 +1,6 @@
-"""Helpers of ``sicomat simulate``: choosing the setpoint from options, the JSON payload."""
+"""Helpers of ``sicomat simulate``: the setpoint from a step, a move or the model, the JSON payload,
+a G-code run. Errors name the parameter (``ModelError.path``); the command line checks how its
+options combine before calling."""
 
 from __future__ import annotations
 
@@ -6,8 +8,7 @@ from typing import Any
 
 from ..errors import ModelError
 
-__all__ = ["choose_profile", "simulate_payload", "diverged_payload", "check_magnification",
-           "STEP_FIGURES"]
+__all__ = ["choose_profile", "simulate_payload", "diverged_payload", "simulate_gcode", "STEP_FIGURES"]
 
 STEP_FIGURES = ("overshoot_percent", "rise_time", "settling_time")
 """Figures of a settling step response: None (null) when the loop is unstable."""
@@ -31,7 +32,7 @@ def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration)
     from ..motion.setpoints import profile_from_spec
 
     if step_mm is not None and move_mm is not None:
-        raise ModelError("give either --step or --move, not both", source="options")
+        raise ModelError("give either a step or a move, not both", path="move_mm", value=move_mm)
     if step_mm is not None:
         return profile_from_spec(StepSetpoint.model_construct(type="step", distance=step_mm * 1e-3)), 0.3
     if move_mm is not None:
@@ -44,17 +45,10 @@ def choose_profile(trajectory, step_mm, move_mm, max_velocity, max_acceleration)
         profile = profile_from_spec(move)
         return profile, profile.end_time + 0.2
     if trajectory is None:
-        raise ModelError("no setpoint: give --step MM or --move MM, or add a [axes.<name>.trajectory] table",
-                         source="options")
+        raise ModelError("no setpoint: give a step or a move, or add a [axes.<name>.trajectory] table",
+                         path="trajectory")
     profile = profile_from_spec(trajectory)
     return profile, profile.end_time + (0.2 if profile.kind != "ramp" else 0.3)
-
-
-def check_magnification(magnification: float | None) -> None:
-    """``--magnification`` must be a finite factor > 0 (or absent: automatic)."""
-    if magnification is not None and not 0.0 < magnification < float("inf"):
-        raise ModelError("expected a finite factor > 0 (or leave it out: automatic)", source="--magnification",
-                         value=magnification)
 
 
 def simulate_payload(series, verdict=None) -> dict[str, Any]:
@@ -93,9 +87,10 @@ def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlin
     from ..motion import interpolate
 
     if step_mm is not None or move_mm is not None:
-        raise ModelError("--gcode cannot be combined with --step or --move", source="options")
+        raise ModelError("a G-code path cannot be combined with a step or a move", path="gcode_path",
+                         value=str(gcode_path))
     if feed_mm_min is not None and not feed_mm_min > 0:
-        raise ModelError("the feed must be > 0 mm/min", source="--feed", value=feed_mm_min)
+        raise ModelError("the feed must be > 0 mm/min", path="feed_mm_min", value=feed_mm_min)
     try:
         from ..io.modelfile import read_text_bounded
 

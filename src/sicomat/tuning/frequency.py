@@ -12,7 +12,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -105,7 +105,6 @@ class TuningResult:
     with_notch: "TuningResult | None" = None
     evaluations: int = 0
     wall_time_s: float = 0.0
-    history: tuple[dict[str, float], ...] = field(default_factory=tuple, repr=False)
     stable: bool | None = None
     stability_warnings: tuple[str, ...] = ()
 
@@ -377,16 +376,16 @@ def _check_targets(loop: "ServoLoop", t: TuningTargets) -> None:
     nyq_p = np.pi / ctrl.position_period if ctrl.position_loop == "discrete" else np.inf
     if not 0 < _resolved(t.velocity_crossover) < nyq_v:
         raise ModelError(f"the velocity crossover must be between 0 and the velocity loop's Nyquist frequency "
-                         f"{nyq_v:.4g} rad/s", path="--velocity-crossover", value=t.velocity_crossover)
+                         f"{nyq_v:.4g} rad/s", path="velocity_crossover", value=t.velocity_crossover)
     if not 0 < t.velocity_phase_margin < 90:
         raise ModelError("the velocity phase margin must be between 0 and 90 degrees",
-                         path="--velocity-phase-margin", value=t.velocity_phase_margin)
+                         path="velocity_phase_margin", value=t.velocity_phase_margin)
     if t.position_crossover is not None and not 0 < t.position_crossover < nyq_p:
         raise ModelError(f"the position crossover must be between 0 and {nyq_p:.4g} rad/s",
-                         path="--position-crossover", value=t.position_crossover)
+                         path="position_crossover", value=t.position_crossover)
     if t.position_crossover is None and not (t.position_phase_margin and 0 < t.position_phase_margin < 90):
         raise ModelError("the position phase margin must be between 0 and 90 degrees",
-                         path="--position-phase-margin", value=t.position_phase_margin)
+                         path="position_phase_margin", value=t.position_phase_margin)
 
 
 def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: float, progress=None,

@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import AnalysisError
 from ..lti.response import zoh_matrices
 from ..frequency.loops import LoopAnalysis
+from ..simulation.timeseries import step_figures
 from ..progress import notify
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -48,26 +49,36 @@ class TimeTargets:
 
 @dataclass(frozen=True)
 class StepResponse:
-    """A unit step response of a sampled loop with its rise time (10–90 %) and overshoot."""
+    """A unit step response of a sampled loop with its overshoot, rise time (10–90 %) and 2 %
+    settling time (:func:`sicomat.simulation.timeseries.step_figures`, as ``simulate`` reports them)."""
 
     time: np.ndarray
     response: np.ndarray
     overshoot_percent: float
     rise_time: float | None
     stable: bool
+    settling_time: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready figures (without the samples); an unstable loop has no overshoot (None)."""
         return {"overshoot_percent": self.overshoot_percent if self.stable else None,
-                "rise_time": self.rise_time, "stable": self.stable}
+                "rise_time": self.rise_time, "settling_time": self.settling_time, "stable": self.stable}
+
+    def plot(self, title: str = "step response"):
+        """The response against time, its overshoot and rise time in the title; returns the Figure."""
+        from ..plots.time import plot_step
+
+        return plot_step(self, title)
 
 
 def _step(A: np.ndarray, B: np.ndarray, C: np.ndarray, period: float, n: int, velocity_period: float,
           tail: int = 1) -> StepResponse:
     """Unit step response of ``x+ = A x + B``, ``y = C x``, judged by the poles of A (see
     :mod:`sicomat.servo.stability`; poles at z = 1, the free position a velocity loop does not hold, are
-    marginal). The final value is the mean of the last ``tail`` samples. An unstable loop has no
-    overshoot or rise time (``inf`` and None) and its samples stop, as NaN, where they overflow."""
+    marginal). The final value is the mean of the last ``tail`` samples; the figures are
+    :func:`~sicomat.simulation.timeseries.step_figures` of a step of that size. An unstable loop has
+    no overshoot, rise or settling time (``inf``, None, None) and its samples stop, as NaN, where
+    they overflow."""
     from ..servo.stability import LoopPoles
 
     stable = LoopPoles("step", np.linalg.eigvals(A), period, velocity_period).stable
@@ -84,11 +95,8 @@ def _step(A: np.ndarray, B: np.ndarray, C: np.ndarray, period: float, n: int, ve
     final = float(np.mean(y[-max(1, tail):])) if stable else np.nan
     if not stable or not np.isfinite(final) or abs(final) < 1e-12:
         return StepResponse(t, y, np.inf, None, False)
-    norm = y / final
-    overshoot = float(max(0.0, (np.max(norm) - 1.0) * 100.0))
-    above10, above90 = np.flatnonzero(norm >= 0.1), np.flatnonzero(norm >= 0.9)
-    rise = float(t[above90[0]] - t[above10[0]]) if above10.size and above90.size else None
-    return StepResponse(t, y, overshoot, rise, True)
+    figures = step_figures(t, y, final)
+    return StepResponse(t, y, figures.overshoot_percent, figures.rise_time, True, figures.settling_time)
 
 
 def velocity_step(an: LoopAnalysis, Kp: float, Ti: float, duration: float | None = None) -> StepResponse:
