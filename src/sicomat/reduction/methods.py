@@ -197,14 +197,18 @@ def reduce(model: "Machine | Plant", method: str = "balanced", order: int | None
         if method == "physical":
             from .physical import physical_reduction, reduced_machine
 
+            # a state space was refused above for this method: the machine, its axis and its name are set
+            assert ax is not None and machine is not None and name is not None
             result = physical_reduction(ax.mechanics, keep_list, order=order, band_hz=band_hz, tool=_tool(ax),
                                         inputs=ins, outputs=outs)
+            assert result.spec is not None   # a physical reduction always gives the reduced mechanics table
             return dataclasses.replace(result, machine=reduced_machine(machine, name, result.spec,
                                                                        merged_into=result.merged_into),
                                        notes=(*notes, *result.notes))
         if plant is None:
             from ..mechanics.lumped import build_mechanics
 
+            assert ax is not None            # no plant given: it comes from the machine's axis
             plant = build_mechanics(ax.mechanics).state_space()
         gramian_band = band_hz           # a band given by the caller also selects the partial Gramians
         if order is None:
@@ -219,20 +223,19 @@ def reduce(model: "Machine | Plant", method: str = "balanced", order: int | None
                                  f"the modes up to twice it are kept: {order} states")
             else:
                 order = min(_order_for_band(plant, band_hz), plant.n_states)
-        io = {"inputs": ins, "outputs": outs}
         if method == "modal":
-            result = modal_truncation(plant, order, band_hz=band_hz, **io)
+            result = modal_truncation(plant, order, band_hz=band_hz, inputs=ins, outputs=outs)
         elif method == "balanced":
             if gramian_band is not None:
-                result = bal.frequency_limited_truncation(plant, order, gramian_band, **io)
+                result = bal.frequency_limited_truncation(plant, order, gramian_band, inputs=ins, outputs=outs)
             else:
-                result = bal.balanced_truncation(plant, order, band_hz=band_hz, **io)
+                result = bal.balanced_truncation(plant, order, band_hz=band_hz, inputs=ins, outputs=outs)
         elif method == "balanced-dc":
-            result = bal.balanced_truncation(plant, order, match_dc=True, band_hz=band_hz, **io)
+            result = bal.balanced_truncation(plant, order, match_dc=True, band_hz=band_hz, inputs=ins, outputs=outs)
         elif method == "schur":
-            result = bal.schur_truncation(plant, order, band_hz=band_hz, **io)
+            result = bal.schur_truncation(plant, order, band_hz=band_hz, inputs=ins, outputs=outs)
         else:
-            result = bal.hankel_norm_approximation(plant, order, band_hz=band_hz, **io)
+            result = bal.hankel_norm_approximation(plant, order, band_hz=band_hz, inputs=ins, outputs=outs)
         return dataclasses.replace(result, notes=(*notes, *result.notes))
     except ModelError as exc:
         if exc.source is None and exc.path in ("band_hz", "keep") and not (exc.path == "keep" and keep_list):
