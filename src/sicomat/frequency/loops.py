@@ -86,7 +86,10 @@ class LoopAnalysis(LoopModel):
         (``error_form``: the error with the measurement folded in, as the loop gain sees it)."""
         law = linear_law(self.loop, Kp, Ti, error_form=error_form)
         point = 1j * omega if self.analog else np.exp(1j * omega * self.loop.controller.velocity_period)
-        dynamic = _ss_response(DiscreteSS(law.A, law.B[:, :1], law.C, np.zeros((1, 1))), point)
+        if law.A.shape[0] == 1:     # one state (a PI's integrator): C B / (z − a), one division per point
+            dynamic = law.C[0, 0] * law.B[0, 0] / (point - law.A[0, 0])
+        else:
+            dynamic = _ss_response(DiscreteSS(law.A, law.B[:, :1], law.C, np.zeros((1, 1))), point)
         return np.full(omega.shape, law.D[0, 0], dtype=complex), dynamic
 
     def velocity_factors(self, omega: np.ndarray, Kp: float, Ti: float):
