@@ -10,6 +10,8 @@ through the model file, bad parameters give located errors.
 from __future__ import annotations
 
 import itertools
+import os
+from pathlib import Path
 
 import control
 import numpy as np
@@ -70,9 +72,18 @@ def _loop(controller_type, drive_type, **controller):
     return build_servo_loop(machine_from_dict(_data(controller_type, drive_type, **controller)))
 
 
+@pytest.mark.parametrize("domain", ["discrete", "continuous"])
 @pytest.mark.parametrize("controller_type, drive_type", KINDS)
-def test_simulated_linear_loop_equals_the_linear_model(controller_type, drive_type):
-    loop = _loop(controller_type, drive_type)
+def test_simulated_linear_loop_equals_the_linear_model(controller_type, drive_type, domain):
+    analog = {"velocity_loop": "continuous", "velocity_delay": 0} if domain == "continuous" else {}
+    try:
+        loop = _loop(controller_type, drive_type, **analog)
+    except ModelError as exc:       # a kind without a continuous law must say so, located
+        assert domain == "continuous" and "axes.X.controller.velocity_loop" in str(exc)
+        with pytest.raises(ModelError):
+            spec = machine_from_dict(_data(controller_type, drive_type)).axes["X"].controller
+            controller_kind(controller_type).continuous_law(spec, KP, TI)
+        return
     an = LoopAnalysis.of(loop)
     assert loop_verdict(loop, an=an).stable
     step = 1e-3
@@ -85,8 +96,9 @@ def test_simulated_linear_loop_equals_the_linear_model(controller_type, drive_ty
         expected.append(Cc @ x)
         x = A @ x + B * step
     measured = (series["setpoint.fine"] - series["following_error"])[::NP]
-    # the kernel (its program from servo_program) against the lifted model (from LoopModel): two realisations
-    # of the same sampled loop, both ZOH-discretised by expm (a few eps per step); 100 position samples of a
+    # the kernel (its program from servo_program) against the lifted model (from LoopModel; an analog velocity
+    # loop: the ZOH at Tp of its continuous closed loop): two realisations of the same sampled loop, both
+    # discretised by expm (a few eps per step); 100 position samples of a
     # stable loop whose realisations have condition numbers ~1e4 (the differencing 1/T, the masses): rounding
     # ~1e4·100·eps ≈ 2e-10 relative to the 1e-3 m step, i.e. 2e-13 m; 1e-12 m allows it
     np.testing.assert_allclose(measured, expected, rtol=0, atol=1e-12)
@@ -142,6 +154,21 @@ def test_kind_rejects_an_unknown_key_and_a_bad_value_with_its_location(controlle
     bad["axes"]["X"]["drive"]["force_constant"] = -1.0
     with pytest.raises(ModelError, match=r"axes\.X\.drive\.force_constant"):
         machine_from_dict(bad)
+
+
+def test_stability_verdict_does_not_read_the_frequency_package():
+    import subprocess
+    import sys
+
+    code = ("import sys, sicomat\n"
+            "from sicomat.servo.loop import build_servo_loop\n"
+            "from sicomat.servo.stability import loop_verdict\n"
+            "assert loop_verdict(build_servo_loop(sicomat.load_model('examples/paper_2m1s.toml'))).stable\n"
+            "print(sorted(m for m in sys.modules if m.startswith('sicomat.frequency')))\n")
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root / "src")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root, env=env)
+    assert out.stdout.strip() == "[]"
 
 
 def test_unknown_types_name_the_known_ones():
@@ -233,7 +260,7 @@ def test_linear_law_error_form_equal_for_pi_and_ip():
 
 
 # --------------------------------------------------------------------------- the CLI with the new type
-EXAMPLE = "examples/rigid_1m_tf.toml"
+EXAMPLE = str(Path(__file__).resolve().parents[1] / "examples" / "rigid_1m_tf.toml")
 
 
 @pytest.mark.parametrize("command", [["bode", "--loop", "velocity-open", "--points", "50"], ["margins"], ["step"],
