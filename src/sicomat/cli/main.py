@@ -466,6 +466,8 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         servo = build_servo_loop(load(model, set_), axis)
         an = LoopAnalysis.of(servo)
         Kp = servo.Kp if kp is None else kp * servo.m_rigid
+        if ti is not None and servo.Ti == float("inf"):
+            raise ModelError(f"a {servo.controller.type!r} velocity law has no integral time", source="--Ti", value=ti)
         Ti = servo.Ti if ti is None else ti
         Kv = servo.Kv if kv is None else kv
         response = velocity_step(an, Kp, Ti, duration) if loop == "velocity" else position_step(an, Kp, Ti, Kv, duration)
@@ -487,9 +489,10 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             from .tables import print_verdict
 
             rise = "-" if response.rise_time is None else f"{response.rise_time * 1e3:.3g} ms"
+            ti_text = "-" if Ti == float("inf") else f"{Ti:.4g} s"     # a P-TF law has no Ti
             over = "-" if payload["overshoot_percent"] is None else f"{payload['overshoot_percent']:.3g} %"
             Console(highlight=False, soft_wrap=True).print(
-                f"{loop} loop, Kp_normalized = {payload['Kp_normalized']:.4g} 1/s, Ti = {Ti:.4g} s, "
+                f"{loop} loop, Kp_normalized = {payload['Kp_normalized']:.4g} 1/s, Ti = {ti_text}, "
                 f"Kv = {Kv:.4g} 1/s: overshoot {over}, rise time {rise}")
             print_verdict(payload, f"{loop} loop")
         exit_for(payload)

@@ -1,7 +1,8 @@
 """Schema of the servo blocks of an axis: the drive (power converter), the CNC controller, the setpoint.
 
 Each block kind has implementations chosen by ``type`` ("Modify Scheme" of the paper): the
-controllers ``P-PI`` and ``P-IP``, the drive ``first-order``, the setpoints ``step``, ``ramp`` and
+controllers ``P-PI``, ``P-IP`` and ``P-TF`` (a velocity law given as a discrete transfer function),
+the drive ``first-order`` (their lowerings: ``sicomat.servo.blocks``), the setpoints ``step``, ``ramp`` and
 ``trapezoid``. Units follow the axis: N, m for a linear motor on a linear axis; N·m, rad for a
 rotary motor (see ``docs/servo.md``).
 """
@@ -138,15 +139,21 @@ class ControllerSpec(Spec):
     has no computation delay, quantization or sampling of its own: its period is then only the
     step at which the simulator samples it (``velocity_period``) or at which the interpolator hands
     it setpoints (``position_period``). See ``docs/servo.md``.
+
+    ``type = "P-TF"``: the velocity law is ``u = Kp · N(z⁻¹)/D(z⁻¹) · e`` at the velocity period,
+    ``numerator`` N and ``denominator`` D the coefficients of ascending powers of z⁻¹ (``D[0] ≠ 0``);
+    no ``Ti``, anti-windup ``none``, a discrete velocity loop.
     """
 
-    type: Literal["P-PI", "P-IP"] = "P-PI"
+    type: Literal["P-PI", "P-IP", "P-TF"] = "P-PI"
     position_sensor: Name
     velocity_sensor: Name | None = None
     Kv: Gain
     Kp: float | None = Field(default=None, gt=0)
     Kp_normalized: Gain | None = None
-    Ti: Time
+    Ti: Time | None = None
+    numerator: list[float] | None = Field(default=None, min_length=1)
+    denominator: list[float] | None = Field(default=None, min_length=1)
     anti_windup: Literal["clamping", "back-calculation", "none"] = "clamping"
     tracking_time: Time | None = None
     velocity_feedforward: Fraction = 0.0
@@ -174,6 +181,14 @@ class ControllerSpec(Spec):
 
     @model_validator(mode="before")
     @classmethod
+    def _tf_anti_windup(cls, data: Any) -> Any:
+        """A transfer-function law has no integrator to stop: its anti-windup defaults to none."""
+        if isinstance(data, dict) and data.get("type") == "P-TF" and "anti_windup" not in data:
+            data = {**data, "anti_windup": "none"}
+        return data
+
+    @model_validator(mode="before")
+    @classmethod
     def _continuous_delays(cls, data: Any) -> Any:
         """A continuous loop computes without delay: its delay defaults to 0 instead of 1 sample."""
         if isinstance(data, dict):
@@ -186,6 +201,7 @@ class ControllerSpec(Spec):
     def _consistent(self) -> "ControllerSpec":
         if (self.Kp is None) == (self.Kp_normalized is None):
             raise fail("give exactly one of 'Kp' (physical units) or 'Kp_normalized' (1/s)", "Kp", self.Kp)
+        self._law_parameters()
         if self.velocity_period <= 0 or self.position_period <= 0:
             raise fail("sample periods must be > 0 (for an analog loop set velocity_loop or position_loop "
                        "= 'continuous' and keep its period as the simulator's step)",
@@ -218,3 +234,34 @@ class ControllerSpec(Spec):
             raise fail("command_bits quantizes the current command of a discrete velocity loop; a "
                        "continuous velocity loop has no DAC of its own", "command_bits", self.command_bits)
         return self
+
+    def _law_parameters(self) -> None:
+        """The parameters of the velocity law that its ``type`` needs, and only those."""
+        if self.type != "P-TF":
+            if self.Ti is None:
+                raise fail("a {kind} controller needs the integral time 'Ti'", "Ti", None, kind=self.type)
+            for key in ("numerator", "denominator"):
+                if getattr(self, key) is not None:
+                    raise fail("'{key}' belongs to a 'P-TF' controller (a velocity law given as a transfer "
+                               "function); a {kind} law has Kp and Ti", key, getattr(self, key), key=key,
+                               kind=self.type)
+            return
+        for key in ("numerator", "denominator"):
+            if getattr(self, key) is None:
+                raise fail("a 'P-TF' controller needs its '{key}' (coefficients of ascending powers of z^-1)",
+                           key, None, key=key)
+        if self.Ti is not None:
+            raise fail("a 'P-TF' controller has no integral time: its integrator, if any, is in the "
+                       "denominator", "Ti", self.Ti)
+        if self.denominator[0] == 0:  # type: ignore[index]
+            raise fail("the first denominator coefficient (of z^0) must not be 0: the law would not be causal",
+                       "denominator.0", 0.0)
+        if not any(self.numerator):  # type: ignore[arg-type]
+            raise fail("the numerator is all zeros: the velocity law would not act", "numerator",
+                       self.numerator)
+        if self.anti_windup != "none":
+            raise fail("a 'P-TF' law has no integrator to stop: expected anti_windup = 'none'", "anti_windup",
+                       self.anti_windup)
+        if self.velocity_loop != "discrete":
+            raise fail("a 'P-TF' law is a discrete transfer function: expected velocity_loop = 'discrete'",
+                       "velocity_loop", self.velocity_loop)

@@ -16,14 +16,15 @@ continuous closed velocity loop at Tp; a continuous position loop is evaluated a
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..servo.controller import DiscreteSS, continuous_filter, filter_block
+from ..servo.blocks import linear_law
+from ..servo.controller import DiscreteSS, continuous_filter
+from ..servo.linear import LoopModel
 from ..errors import ModelError
-from ..lti.response import FrequencyResponse, modal_form, response_at, static_gain, zoh_matrices
+from ..lti.response import FrequencyResponse, modal_form, response_at, static_gain
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
@@ -71,48 +72,32 @@ def _ss_response(ss: DiscreteSS, z: np.ndarray) -> np.ndarray:
     return (C @ inv @ B)[:, 0, 0] + D[0, 0]
 
 
-@dataclass(frozen=True, eq=False)
-class LoopAnalysis:
-    """Pieces of a loop that do not depend on the gains, computed once (for tuning loops).
+class LoopAnalysis(LoopModel):
+    """Pieces of a loop that do not depend on the gains, computed once (for tuning loops); the
+    loop's linear model (:class:`~sicomat.servo.linear.LoopModel`) and its frequency responses.
 
     Use :meth:`response` for any transfer, with the loop's gains or others.
     """
 
-    loop: "ServoLoop"
-    Phi: np.ndarray        # the plant ZOH-sampled at Tv; its continuous A for an analog velocity loop
-    Gamma: np.ndarray      # ... and its B
-    c_pos: np.ndarray      # row: raw position-sensor reading
-    c_vel: np.ndarray      # row: raw velocity-sensor reading (a position if differenced)
-    differenced: bool      # velocity from a position sensor (differenced, or differentiated if analog)
-    analog: bool = False   # the velocity loop is continuous
-
-    @classmethod
-    def of(cls, loop: "ServoLoop") -> "LoopAnalysis":
-        """Discretise the plant of ``loop`` at the velocity period (keep it continuous for an analog
-        velocity loop)."""
-        from ..servo.loop import servo_plant
-
-        ctrl = loop.controller
-        plant = servo_plant(loop)
-        analog = ctrl.velocity_loop == "continuous"
-        Phi, Gamma = (plant.A, plant.B) if analog else zoh_matrices(plant.A, plant.B, ctrl.velocity_period)
-        vel = loop.mechanics.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
-        return cls(loop, Phi, Gamma, plant.C[plant.outputs.index(f"sensor.{ctrl.position_sensor}")],
-                   plant.C[plant.outputs.index(f"sensor.{vel.name}")], vel.kind == "position", analog)
-
     # ------------------------------------------------------------------ velocity loop (rate Tv)
-    def _blocks(self) -> tuple[list[DiscreteSS], DiscreteSS | None]:
-        ctrl, T = self.loop.controller, self.loop.controller.velocity_period
-        where = f"axes.{self.loop.axis}.controller"
-        current = [_filter(f, T, f"{where}.current_filters.{i}") for i, f in enumerate(ctrl.current_filters)]
-        velocity = _filter(ctrl.velocity_filter, T, f"{where}.velocity_filter") if ctrl.velocity_filter else None
-        return current, velocity
+    def velocity_law_response(self, omega: np.ndarray, Kp: float, Ti: float, *, error_form: bool = False
+                              ) -> tuple[np.ndarray, np.ndarray]:
+        """The velocity law's lowering (:func:`~sicomat.servo.blocks.linear_law`) at
+        ``z = e^{jωTv}`` (``s = jω`` analog): its feedthrough and its dynamic part from the error
+        (``error_form``: the error with the measurement folded in, as the loop gain sees it)."""
+        law = linear_law(self.loop, Kp, Ti, error_form=error_form)
+        point = 1j * omega if self.analog else np.exp(1j * omega * self.loop.controller.velocity_period)
+        if law.A.shape[0] == 1:     # one state (a PI's integrator): C B / (z − a), one division per point
+            dynamic = law.C[0, 0] * law.B[0, 0] / (point - law.A[0, 0])
+        else:
+            dynamic = _ss_response(DiscreteSS(law.A, law.B[:, :1], law.C, np.zeros((1, 1))), point)
+        return np.full(omega.shape, law.D[0, 0], dtype=complex), dynamic
 
     def velocity_factors(self, omega: np.ndarray, Kp: float, Ti: float):
-        """``(C_p, C_i, A, M)`` at ``z = e^{jωTv}``: proportional and integral parts of the
-        velocity law, actuation (current filters, delay, 1/Kt, plant to the velocity sensor) and the
-        measurement (differencing, conversion, filter), so that ``L_v = (C_p + C_i)·A·M``; at
-        ``s = jω`` for an analog velocity loop."""
+        """``(C_p, C_i, A, M)`` at ``z = e^{jωTv}``: the feedthrough (proportional) and dynamic
+        (integral) parts of the velocity law as the loop gain sees it, actuation (current filters,
+        delay, 1/Kt, plant to the velocity sensor) and the measurement (differencing, conversion,
+        filter), so that ``L_v = (C_p + C_i)·A·M``; at ``s = jω`` for an analog velocity loop."""
         loop, ctrl = self.loop, self.loop.controller
         integral: np.ndarray
         if self.analog:
@@ -121,7 +106,6 @@ class LoopAnalysis:
             actuation: np.ndarray = np.full(s.shape, 1.0 / loop.drive.kt, dtype=complex)
             for spec in ctrl.current_filters:
                 actuation = actuation * _tf_at(spec, s)
-            integral = Kp / (Ti * s)
         else:
             T = ctrl.velocity_period
             z = np.exp(1j * omega * T)
@@ -129,8 +113,14 @@ class LoopAnalysis:
             actuation = z ** (-ctrl.velocity_delay) / loop.drive.kt
             for block in self._blocks()[0]:
                 actuation = actuation * _ss_response(block, z)
-            integral = Kp * T / Ti / (z - 1.0)
-        return np.full(omega.shape, Kp, dtype=complex), integral, actuation, plant * self._measurement(omega)
+        proportional, integral = self.velocity_law_response(omega, Kp, Ti, error_form=True)
+        return proportional, integral, actuation, plant * self._measurement(omega)
+
+    def velocity_forward(self, omega: np.ndarray, Kp: float, Ti: float) -> np.ndarray:
+        """The velocity law from the velocity command to the effort (``C_e``; ``C_p + C_i`` for a
+        law driven by the error alone, ``C_i`` for P-IP)."""
+        feedthrough, dynamic = self.velocity_law_response(omega, Kp, Ti)
+        return feedthrough + dynamic if np.any(feedthrough) else dynamic
 
     def _measurement(self, omega: np.ndarray) -> np.ndarray:
         """Velocity-sensor reading → measured velocity: the conversion to axis units, the
@@ -154,86 +144,7 @@ class LoopAnalysis:
             measure = measure * _ss_response(velocity, z)
         return measure
 
-    def analog_closed_loop(self, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Continuous state space of the closed analog velocity loop: inputs (velocity command,
-        feedforward effort), outputs (measured position in axis units, measured velocity)."""
-        from ..servo.analog import analog_loop
-        from ..servo.loop import servo_plant
-
-        loop = self.loop.with_gains(Kp=Kp, Ti=Ti)
-        if loop.controller.position_loop == "continuous":     # the velocity loop alone, commanded
-            loop = _with_controller(loop, position_loop="discrete")
-        closed = analog_loop(loop, servo_plant(loop))
-        n = closed.A.shape[0]
-        pos = np.zeros(n)
-        pos[: self.c_pos.size] = self.c_pos / loop.position_gain
-        return closed.A, closed.B, np.vstack([pos, closed.outputs["velocity.measured"][:n]])
-
-    def velocity_closed_loop(self, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """State space at Tv of the closed velocity loop: inputs (velocity command, feedforward
-        effort), outputs (measured position in axis units, measured velocity)."""
-        loop, ctrl = self.loop, self.loop.controller
-        T = ctrl.velocity_period
-        current, velocity = self._blocks()
-        capacity = self.Phi.shape[0] + 2 + 2 * (len(current) + 1) + ctrl.velocity_delay
-        from ..budget import require_dense
-
-        require_dense(capacity, "this analysis of the sampled velocity loop",
-                      f"one per sample of the velocity_delay of {ctrl.velocity_delay}")
-        b = _Builder(capacity, n_inputs=2)
-        x = b.block(self.Phi.shape[0])
-        pos_raw = b.row(x, self.c_pos)
-        vs_raw = b.row(x, self.c_vel)
-        if self.differenced:
-            prev = b.block(1)
-            v_raw = (vs_raw - b.state(prev, 0)) * (1.0 / (T * loop.velocity_gain))
-            b.next(prev, 0, vs_raw)
-        else:
-            v_raw = vs_raw * (1.0 / loop.velocity_gain)
-        v_meas = b.apply(velocity, v_raw) if velocity is not None else v_raw
-        error = b.input(0) - v_meas
-        z = b.block(1)
-        if ctrl.type == "P-PI":
-            effort = error * Kp + b.state(z, 0)
-        else:
-            effort = b.state(z, 0) - v_meas * Kp
-        b.next(z, 0, b.state(z, 0) + error * (Kp * T / Ti))
-        signal = (effort + b.input(1)) * (1.0 / loop.drive.kt)
-        for block in current:
-            signal = b.apply(block, signal)
-        if ctrl.velocity_delay:
-            line = b.block(ctrl.velocity_delay)
-            b.next(line, 0, signal)
-            for j in range(1, ctrl.velocity_delay):
-                b.next(line, j, b.state(line, j - 1))
-            signal = b.state(line, ctrl.velocity_delay - 1)
-        for i in range(self.Phi.shape[0]):
-            b.next(x, i, b.row(x, self.Phi[i]) + signal * self.Gamma[i, 0])
-        A, B = b.matrices()
-        n = A.shape[0]
-        C = np.vstack([(pos_raw * (1.0 / loop.position_gain)).sx[:n], v_meas.sx[:n]])
-        D = np.vstack([(pos_raw * (1.0 / loop.position_gain)).su, v_meas.su])
-        if np.any(D):
-            raise RuntimeError("the sampled measurements have no direct feedthrough")  # pragma: no cover
-        return A, B, C
-
     # ------------------------------------------------------------------ position loop (rate Tp)
-    def position_model(self, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The closed velocity loop as an exact LTI system at Tp: inputs (velocity command,
-        feedforward effort) held over Tp, outputs (measured position, velocity) sampled at Tp —
-        the lifted sampled loop (``A^Np``, ``Σ A^i B``), or the ZOH of an analog one."""
-        if self.analog:
-            A, B, C = self.analog_closed_loop(Kp, Ti)
-            Ap, Bp = zoh_matrices(A, B, self.loop.controller.position_period)
-            return Ap, Bp, C
-        A, B, C = self.velocity_closed_loop(Kp, Ti)
-        Bp = np.zeros_like(B)
-        power = np.eye(A.shape[0])
-        for _ in range(self.loop.position_ratio):
-            Bp += power @ B
-            power = power @ A
-        return np.linalg.matrix_power(A, self.loop.position_ratio), Bp, C
-
     def position_lifted(self, omega: np.ndarray, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray]:
         """Lifted transfers at ``z = e^{jωTp}`` from the velocity command and from the feedforward
         effort (both held over Tp) to the measured position (sampled at Tp)."""
@@ -257,8 +168,8 @@ class LoopAnalysis:
 
         The closed loop's state space is evaluated at ``z = 1`` (``s = 0`` for a continuous loop) by
         :func:`~sicomat.lti.response.static_gain`, which takes the exact limit through the removable
-        pole of the rigid-body drift. The velocity loop: ``L_v`` is the same for P-PI and P-IP, so
-        ``T_v`` is the P-PI loop from the velocity command. The position loop: ``Kv·z^{−d}·g_v``
+        pole of the rigid-body drift. The velocity loop: ``L_v`` sees the law from the error only
+        (the same for P-PI and P-IP), so ``T_v`` is the loop with the law in that form. The position loop: ``Kv·z^{−d}·g_v``
         around the lifted (or analog) velocity loop, delay line included; a continuous position
         loop's delay ``e^{−s d Tp}`` is 1 at ``s = 0``. With an integrator in the loop the value is
         1 to round-off (it is computed, not assumed).
@@ -268,9 +179,8 @@ class LoopAnalysis:
         Ti = loop.Ti if Ti is None else Ti
         Kv = loop.Kv if Kv is None else Kv
         if which == "velocity-open":
-            pi = LoopAnalysis(_with_controller(loop, type="P-PI"), self.Phi, self.Gamma, self.c_pos,
-                              self.c_vel, self.differenced, self.analog)
-            A, B, C = pi.analog_closed_loop(Kp, Ti) if self.analog else pi.velocity_closed_loop(Kp, Ti)
+            closed = self.analog_closed_loop if self.analog else self.velocity_closed_loop
+            A, B, C = closed(Kp, Ti, error_form=True)
             return float(static_gain(A, B[:, :1], C[1:2], discrete=not self.analog)[0, 0])
         if which != "position-open":
             raise ModelError(f"expected 'velocity-open' or 'position-open', got {which!r}", path="which")
@@ -320,7 +230,7 @@ class LoopAnalysis:
                                          info={"input": "velocity error", "output": "measured velocity",
                                                "closed_loop_static_gain":
                                                    self.closed_loop_static_gain(which, Kp, Ti, Kv)})
-            forward = (cp + ci) if ctrl.type == "P-PI" else ci
+            forward = self.velocity_forward(omega, Kp, Ti)
             return FrequencyResponse(omega, forward * act * meas / (1.0 + L), which, Tv,
                                      info={"input": "velocity command", "output": "measured velocity"})
         diff: np.ndarray
@@ -374,13 +284,12 @@ class LoopAnalysis:
             hold_p = np.ones_like(omega, dtype=complex)
         else:
             hold_p = (1 - np.exp(-1j * omega * Tp)) / (1j * omega * Tp)
-        # current reference = -(C·act)·[ v_meas + Kv e^{-jω dp Tp} hold_p · p_meas ]  (P-PI and P-IP alike
-        # for disturbances: the setpoint is zero)
+        # current reference = -act·[ (C_p + C_i) v_meas + C_e Kv e^{-jω dp Tp} hold_p · p_meas ]: the
+        # position loop's output is the velocity command, which the law sees through C_e (P-IP: C_i)
         law = (cp + ci) * act * hold_v
         k_vel = law * meas_v
-        k_pos = law * Kv * np.exp(-1j * omega * ctrl.position_delay * Tp) * hold_p / loop.position_gain
-        if ctrl.type == "P-IP":
-            k_pos = ci * act * hold_v * Kv * np.exp(-1j * omega * ctrl.position_delay * Tp) * hold_p / loop.position_gain
+        forward = self.velocity_forward(omega, Kp, Ti) * act * hold_v
+        k_pos = forward * Kv * np.exp(-1j * omega * ctrl.position_delay * Tp) * hold_p / loop.position_gain
         # y = G_d d + G_u u, u = -(k_pos y_pos + k_vel y_vel)
         loop_gain = 1.0 + k_pos * G[0, 0] + k_vel * G[1, 0]
         u = -(k_pos * G[0, 1] + k_vel * G[1, 1]) / loop_gain
@@ -435,99 +344,6 @@ def _tf_at(spec, s: np.ndarray) -> np.ndarray:
     return np.polyval(num, s) / np.polyval(den, s)
 
 
-def _with_controller(loop: "ServoLoop", **update) -> "ServoLoop":
-    from dataclasses import replace
-
-    return replace(loop, controller=loop.controller.model_copy(update=update))
-
-
 def _discrete_response(Phi, Gamma, c, z) -> np.ndarray:
     form = modal_form(Phi, Gamma, c[None, :], cluster=0.0)
     return response_at(form, z)[0, 0]
-
-
-def _filter(spec, period: float, path: str) -> DiscreteSS:
-    try:
-        return filter_block(spec, period)
-    except ValueError as exc:
-        raise ModelError(str(exc), path=path, value=spec.frequency) from None
-
-
-class _Affine:
-    """A signal as an affine function of the state and the inputs: ``sx · x + su · u``."""
-
-    __slots__ = ("sx", "su")
-
-    def __init__(self, sx: np.ndarray, su: np.ndarray) -> None:
-        self.sx, self.su = sx, su
-
-    def __add__(self, other: "_Affine") -> "_Affine":
-        return _Affine(self.sx + other.sx, self.su + other.su)
-
-    def __sub__(self, other: "_Affine") -> "_Affine":
-        return _Affine(self.sx - other.sx, self.su - other.su)
-
-    def __mul__(self, k: float) -> "_Affine":
-        return _Affine(self.sx * k, self.su * k)
-
-
-class _Builder:
-    """Assembles a discrete state space from blocks whose next states are affine signals."""
-
-    def __init__(self, capacity: int, n_inputs: int) -> None:
-        self._max = capacity
-        self.n_inputs = n_inputs
-        self.sizes: list[int] = []
-        self.rows: dict[int, _Affine] = {}
-
-    @property
-    def n_states(self) -> int:
-        return sum(self.sizes)
-
-    def block(self, size: int) -> slice:
-        start = self.n_states
-        if start + size > self._max:  # pragma: no cover - capacity is computed by the caller
-            raise RuntimeError("state capacity exceeded")
-        self.sizes.append(size)
-        return slice(start, start + size)
-
-    def state(self, block: slice, i: int) -> _Affine:
-        sx = np.zeros(self._max)
-        sx[block.start + i] = 1.0
-        return _Affine(sx, np.zeros(self.n_inputs))
-
-    def row(self, block: slice, c: np.ndarray) -> _Affine:
-        sx = np.zeros(self._max)
-        sx[block.start: block.start + c.size] = c
-        return _Affine(sx, np.zeros(self.n_inputs))
-
-    def input(self, j: int) -> _Affine:
-        su = np.zeros(self.n_inputs)
-        su[j] = 1.0
-        return _Affine(np.zeros(self._max), su)
-
-    def next(self, block: slice, i: int, value: _Affine) -> None:
-        self.rows[block.start + i] = value
-
-    def apply(self, ss: DiscreteSS, signal: _Affine) -> _Affine:
-        A, B, C, D = (np.atleast_2d(m) for m in (ss.A, ss.B, ss.C, ss.D))
-        blk = self.block(A.shape[0])
-        states = [self.state(blk, i) for i in range(A.shape[0])]
-        for i in range(A.shape[0]):
-            value = signal * B[i, 0]
-            for j in range(A.shape[0]):
-                value = value + states[j] * A[i, j]
-            self.next(blk, i, value)
-        out = signal * D[0, 0]
-        for j in range(A.shape[0]):
-            out = out + states[j] * C[0, j]
-        return out
-
-    def matrices(self) -> tuple[np.ndarray, np.ndarray]:
-        n = self.n_states
-        A = np.zeros((n, n))
-        B = np.zeros((n, self.n_inputs))
-        for i, value in self.rows.items():
-            A[i] = value.sx[:n]
-            B[i] = value.su
-        return A, B

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .blocks import linear_law
 from .controller import continuous_filter
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,7 +56,7 @@ class AnalogLoop:
     n_controller: int
 
 
-def analog_loop(loop: "ServoLoop", plant: "Plant") -> AnalogLoop:
+def analog_loop(loop: "ServoLoop", plant: "Plant", *, error_form: bool = False) -> AnalogLoop:
     """Close the continuous loops of ``loop`` (``velocity_loop = "continuous"``) around ``plant``.
 
     The laws are those of the discrete loops without sampling: PI ``u = Kp e + ξ``, IP
@@ -72,7 +73,8 @@ def analog_loop(loop: "ServoLoop", plant: "Plant") -> AnalogLoop:
               else ("velocity.command", "feedforward.effort"))
     vel_filter = [] if ctrl.velocity_filter is None else [_filter_ss(ctrl.velocity_filter)]
     cur_filters = [_filter_ss(spec) for spec in ctrl.current_filters]
-    nc = sum(f[0].shape[0] for f in vel_filter + cur_filters) + 1
+    law = linear_law(loop, loop.Kp, loop.Ti, error_form=error_form)
+    nc = sum(f[0].shape[0] for f in vel_filter + cur_filters) + law.A.shape[0]
     N = nx + nc + len(inputs)
     deriv = np.zeros((nx + nc, N))
     free = [nx]                                    # next unused controller state
@@ -109,10 +111,13 @@ def analog_loop(loop: "ServoLoop", plant: "Plant") -> AnalogLoop:
     else:
         v_cmd = r["velocity.command"]
     error = v_cmd - v_meas
-    xi = unit(free[0])
-    deriv[free[0]] = loop.Kp / loop.Ti * error
-    free[0] += 1
-    effort = loop.Kp * error + xi if ctrl.type == "P-PI" else xi - loop.Kp * v_meas
+    k, start = law.A.shape[0], free[0]      # the law: inputs (e, v_meas), states ξ (the integral action)
+    states = np.zeros((k, N))
+    states[:, start: start + k] = np.eye(k)
+    deriv[start: start + k] = law.A @ states + np.outer(law.B[:, 0], error) + np.outer(law.B[:, 1], v_meas)
+    free[0] += k
+    xi = law.C[0] @ states
+    effort = xi + law.D[0, 0] * error + law.D[0, 1] * v_meas
     command = (effort + r["feedforward.effort"]) / drv.kt
     applied = command
     for flt in cur_filters:

@@ -1,4 +1,6 @@
-"""The electric drive (paper II.D): q-axis current loop as a first-order lag, current and voltage limits."""
+"""The electric drive lowered to numbers (paper II.D): the current loop's lag, current and voltage limits.
+
+The drive kinds (``type`` in the model file) and their lowering are in :mod:`sicomat.servo.blocks`."""
 
 from __future__ import annotations
 
@@ -6,9 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..description.servo import DriveSpec
-
-__all__ = ["DriveModel", "drive_model"]
+__all__ = ["DriveModel"]
 
 
 @dataclass(frozen=True)
@@ -16,7 +16,8 @@ class DriveModel:
     """A drive lowered to numbers: ``τ di/dt = i_ref − i``, effort ``= Kt i`` on the actuator.
 
     ``i_peak``, ``u_max``, ``resistance``, ``ke`` and ``wl`` are the parameters of the
-    speed-dependent current limit (``wl`` = electrical speed per mechanical speed × inductance).
+    speed-dependent current limit (``wl`` = electrical speed per mechanical speed × inductance);
+    ``kind`` the drive's ``type`` (:data:`~sicomat.servo.blocks.DRIVES`).
     """
 
     tau: float
@@ -26,6 +27,7 @@ class DriveModel:
     resistance: float
     ke: float
     wl: float
+    kind: str = "first-order"
 
     def current_bounds(self, speed: float) -> tuple[float, float]:
         """Admissible current interval at a speed (rad/s or m/s): peak current ∩ voltage circle.
@@ -52,18 +54,3 @@ class DriveModel:
                 root = np.sqrt(disc)
                 lo, hi = max(lo, (-b - root) / (2 * a)), min(hi, (-b + root) / (2 * a))
         return float(lo), float(hi)
-
-
-def drive_model(spec: DriveSpec, rotational: bool) -> DriveModel:
-    """Lower a drive description; ``rotational`` says whether the actuator drives an inertia."""
-    if spec.pole_pairs is not None:
-        electrical = float(spec.pole_pairs)
-    elif spec.pole_pitch is not None:
-        electrical = np.pi / spec.pole_pitch
-    else:
-        electrical = 0.0
-    return DriveModel(
-        tau=spec.tau, kt=spec.force_constant,
-        i_peak=spec.peak_current if spec.peak_current is not None else np.inf,
-        u_max=spec.supply_voltage if spec.supply_voltage is not None else np.inf,
-        resistance=spec.resistance, ke=spec.ke, wl=electrical * spec.inductance)

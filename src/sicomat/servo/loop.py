@@ -3,8 +3,9 @@
 ``build_servo_loop`` resolves an axis description into numbers (gains in physical units, sensor
 conversions, rigid mass); ``servo_program`` lowers it, with sampled setpoints, into the
 :class:`~sicomat.simulation.program.HybridProgram` the kernel runs. Every block lowers to the same few
-element kinds (linear blocks, sums, saturations, quantizers, delays, current limit, clamping gate),
-so a new controller or drive type only adds a lowering here.
+element kinds (linear blocks, sums, saturations, quantizers, delays, current limit, clamping gate):
+the velocity law and the drive come from their kind's one lowering (:mod:`sicomat.servo.blocks`),
+so a new controller or drive type is one class there, and needs nothing here.
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .controller import DiscreteSS, difference_block, filter_block, velocity_law
-from .drive import DriveModel, drive_model
+from .blocks import controller_kind, drive_model
+from .controller import DiscreteSS, difference_block, filter_block
+from .drive import DriveModel
 from ..errors import ModelError
 from ..mechanics.lumped import Mechanics
 
@@ -49,7 +51,7 @@ class ServoLoop:
     Kp : float
         Velocity gain in physical units (effort per axis velocity); ``Kp_normalized = Kp / m_rigid``.
     Ti, Kv : float
-        Integral time (s) and position gain (1/s).
+        Integral time (s) and position gain (1/s); ``Ti`` is infinite for a law without one (``P-TF``).
     position_gain, velocity_gain : float
         Sensor reading per unit axis motion (rigid), for the position and velocity feedback.
     """
@@ -134,7 +136,7 @@ def build_servo_loop(machine: "Machine", axis: str | None = None) -> ServoLoop:
     kp = ctrl.Kp if ctrl.Kp is not None else ctrl.Kp_normalized * m_rigid  # type: ignore[operator]
     return ServoLoop(axis=name, mechanics=mech, drive=drive_model(spec.drive, act.kind == "rotational"),
                      controller=ctrl, actuator=actuator, tool=tool, m_rigid=m_rigid, Kp=float(kp),
-                     Ti=ctrl.Ti, Kv=ctrl.Kv, position_gain=gains["position"], velocity_gain=gains["velocity"])
+                     Ti=ctrl.Ti if ctrl.Ti is not None else np.inf, Kv=ctrl.Kv, position_gain=gains["position"], velocity_gain=gains["velocity"])
 
 
 @dataclass(frozen=True, eq=False)
@@ -342,7 +344,7 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
                                   wl=drv.wl))
     aw = ctrl.anti_windup if limited else "none"
     tracking = (ctrl.tracking_time or loop.Ti) if aw == "back-calculation" else None
-    law = velocity_law(ctrl.type, loop.Kp, loop.Ti, h, tracking)
+    law = controller_kind(ctrl.type, path=f"axes.{loop.axis}.controller.type").law(ctrl, loop.Kp, loop.Ti, h, tracking)
     # the law's state stays in effort units; its output is turned into current, its excess input back
     # second output: the integral action itself (N or N·m), recorded as a controller state
     law = DiscreteSS(law.A, law.B * np.array([[1.0, 1.0, drv.kt, 1.0]]),

@@ -3,8 +3,8 @@
 Every command that analyses or simulates a loop states one verdict, ``stable`` (True, False, or None
 when unknown) with a list of plain-sentence ``warnings`` (:class:`Verdict`). The verdict comes from
 the loop's linear model: the poles of the closed velocity loop (sampled at Tv, or continuous for an
-analog loop: :meth:`~sicomat.frequency.loops.LoopAnalysis.velocity_closed_loop`,
-:meth:`~sicomat.frequency.loops.LoopAnalysis.analog_closed_loop`) and of the closed position loop around it
+analog loop: :meth:`~sicomat.servo.linear.LoopModel.velocity_closed_loop`,
+:meth:`~sicomat.servo.linear.LoopModel.analog_closed_loop`, built from the blocks' one lowering) and of the closed position loop around it
 (lifted to Tp with its computation delay, or continuous: :func:`position_closed_loop`).
 
 A pole is unstable when its growth rate over one velocity period, ``ln|z|`` (``Re(s)·Tv`` for a
@@ -20,8 +20,9 @@ from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
 
+from .linear import LoopModel
+
 if TYPE_CHECKING:  # pragma: no cover
-    from ..frequency.loops import LoopAnalysis
     from .loop import ServoLoop
     from ..frequency.margins import Margins
 
@@ -117,7 +118,7 @@ def combine(verdicts: Iterable[Verdict], prefixes: Iterable[str] | None = None) 
     return Verdict(stable, warnings)
 
 
-def position_closed_loop(an: "LoopAnalysis", Kp: float, Ti: float, Kv: float):
+def position_closed_loop(an: "LoopModel", Kp: float, Ti: float, Kv: float):
     """The closed position loop from the position setpoint to the measured position:
     ``(A, B, C, period)``, at Tp (the lifted velocity loop with the position loop's computation
     delay line) or, for a continuous position loop, in continuous time (``period`` None)."""
@@ -164,7 +165,7 @@ def _poles(loop: str, A: np.ndarray, period: float | None, velocity_period: floa
     return LoopPoles(loop, np.linalg.eigvals(A), period, velocity_period)
 
 
-def loop_poles(an: "LoopAnalysis", *, Kp: float | None = None, Ti: float | None = None,
+def loop_poles(an: "LoopModel", *, Kp: float | None = None, Ti: float | None = None,
                Kv: float | None = None, loops: Iterable[str] = ("velocity", "position")) -> dict[str, LoopPoles]:
     """The poles of the closed velocity loop and of the closed position loop (the whole cascade),
     with the loop's gains or the ones given (Kp in physical units)."""
@@ -188,7 +189,7 @@ def loop_poles(an: "LoopAnalysis", *, Kp: float | None = None, Ti: float | None 
 
 
 def loop_verdict(loop: "ServoLoop", *, Kp: float | None = None, Ti: float | None = None, Kv: float | None = None,
-                 loops: Iterable[str] = ("velocity", "position"), an: "LoopAnalysis | None" = None) -> Verdict:
+                 loops: Iterable[str] = ("velocity", "position"), an: "LoopModel | None" = None) -> Verdict:
     """The verdict of a servo loop from the poles of its closed linear model.
 
     ``loops`` chooses the closed loops judged: ``("velocity",)`` for the velocity loop alone (the
@@ -206,9 +207,7 @@ def loop_verdict(loop: "ServoLoop", *, Kp: float | None = None, Ti: float | None
     >>> loop_verdict(build_servo_loop(machine).with_gains(Kv=5000.0)).stable
     False
     """
-    from ..frequency.loops import LoopAnalysis
-
-    an = an if an is not None else LoopAnalysis.of(loop)
+    an = an if an is not None else LoopModel.of(loop)
     poles = loop_poles(an, Kp=Kp, Ti=Ti, Kv=Kv, loops=loops)
     warnings = []
     flags = {name: p.stable for name, p in poles.items()}

@@ -21,13 +21,14 @@ import scipy.optimize
 from ..errors import AnalysisError, ModelError
 from ..frequency.loops import LoopAnalysis, default_omega
 from ..progress import notify
+from ..servo.blocks import controller_kind, loop_delays
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
     from ..progress import ProgressCallback
 
-__all__ = ["TuningTargets", "TuningResult", "equivalent_delay", "rigid_velocity_pi", "rigid_position_gain",
-           "tune_frequency"]
+__all__ = ["TuningTargets", "TuningResult", "equivalent_delay", "require_tunable", "rigid_velocity_pi",
+           "rigid_position_gain", "tune_frequency"]
 
 _DEG = np.pi / 180.0
 
@@ -154,25 +155,25 @@ def _finite(x: float) -> float | None:
 
 # --------------------------------------------------------------------------- rigid model, closed forms
 def equivalent_delay(loop: "ServoLoop") -> float:
-    """The lags of the velocity loop folded into one delay (s), for the rigid model (an analog loop
-    keeps only the current loop and the filters).
-
-    ZOH ``Tv/2``, computation delay ``d_v·Tv``, the current loop ``τ`` (first order ≈ delay below
-    its bandwidth), differencing of a position sensor ``Tv/2``, the forward-Euler integrator is
-    neglected, and each filter's group delay at low frequency (low-pass ``2ζ/ω``; notch
-    ``2(ζ_p − ζ_z)/ω``).
-    """
-    ctrl = loop.controller
-    T = ctrl.velocity_period if ctrl.velocity_loop == "discrete" else 0.0    # an analog loop: no sampling
-    delay = T / 2 + ctrl.velocity_delay * T + loop.drive.tau
-    vel = loop.mechanics.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
-    if vel.kind == "position":
-        delay += T / 2
-    filters = list(ctrl.current_filters) + ([ctrl.velocity_filter] if ctrl.velocity_filter else [])
-    for f in filters:
-        w = 2 * np.pi * f.frequency
-        delay += 2 * f.damping / w if f.type == "low-pass" else 2 * (f.width / 2) * (1 - f.depth) / w
+    """The lags of the velocity loop folded into one delay (s), for the rigid model: the sum of the
+    blocks' delays (:func:`~sicomat.servo.blocks.loop_delays`: ZOH ``Tv/2``, computation delay
+    ``d_v·Tv``, the drive's lag, differencing of a position sensor ``Tv/2``, each filter's group
+    delay at low frequency; an analog loop keeps only the drive and the filters)."""
+    delay = 0.0
+    for _, seconds in loop_delays(loop):
+        delay += seconds
     return float(delay)
+
+
+def require_tunable(loop: "ServoLoop") -> None:
+    """Refuse a loop whose velocity law ``tune`` cannot set (it sets the Kp and Ti of a PI-type
+    law): a located :class:`~sicomat.errors.ModelError`."""
+    kind = controller_kind(loop.controller.type, path=f"axes.{loop.axis}.controller.type")
+    if not kind.tunable:
+        raise ModelError(f"tune sets the Kp and Ti of a P-PI or P-IP velocity law; a {kind.type!r} law is fixed "
+                         "by its coefficients, so there is nothing to tune (analyse it with bode, margins, step "
+                         "and simulate, or tune a P-PI and write its law as a transfer function)",
+                         path=f"axes.{loop.axis}.controller.type", value=kind.type)
 
 
 def rigid_velocity_pi(m_rigid: float, crossover: float, phase_margin_deg: float, delay: float) -> tuple[float, float]:
@@ -333,6 +334,7 @@ def tune_frequency(loop: "ServoLoop", targets: TuningTargets | None = None, *, s
         Initial (rigid) and tuned gains, the equivalent delay, the margins reached, whether every
         target was met and, if not, which and a suggested notch with the tuning repeated with it.
     """
+    require_tunable(loop)
     start = time.perf_counter()
     targets = targets or TuningTargets()
     if targets.velocity_crossover is None:

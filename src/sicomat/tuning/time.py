@@ -20,6 +20,7 @@ from ..errors import AnalysisError
 from ..lti.response import zoh_matrices
 from ..frequency.loops import LoopAnalysis
 from ..simulation.timeseries import step_figures
+from .frequency import require_tunable
 from ..progress import notify
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -198,6 +199,7 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None, *,
     AnalysisError
         No gain reaches an overshoot target (e.g. the loop goes unstable before).
     """
+    require_tunable(loop)
     start = time.perf_counter()
     t = targets or TimeTargets()
     an = LoopAnalysis.of(loop)
