@@ -205,7 +205,7 @@ def _bare_system(program, closed_loop: bool = True) -> tuple[np.ndarray, np.ndar
 
 def controller_states(program) -> int:
     """States of the program outside its continuous part: discrete block states and delay-line samples."""
-    from sicomat.simulation.program import Delay
+    from sicomat.servo.program import Delay
 
     return (sum(int(np.shape(b.A)[0]) if np.size(b.A) else 0 for b in program.blocks)
             + sum(int(op.samples) for op in program.ops if isinstance(op, Delay)))

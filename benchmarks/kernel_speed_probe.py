@@ -10,7 +10,7 @@ import time
 import numpy as np
 import scipy.linalg
 
-from sicomat.simulation import program as p
+from sicomat.servo import program as p
 from sicomat.simulation.kernel import bare_loop, run, run_batch
 
 H = 1.0 / 8000.0          # base step: 8 kHz velocity loop

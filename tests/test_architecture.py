@@ -58,13 +58,6 @@ but the CLI and is left out of the rules."""
 # Today's violations, each with why it is there; the test fails on any other, and on an entry that
 # is gone (remove it then). Format: (importing module, imported module).
 KNOWN_VIOLATIONS: dict[tuple[str, str], str] = {
-    ("sicomat.servo.stability", "sicomat.frequency.loops"):
-        "the loop verdict reads the loop analysis: helper C2 (one lowering per block) removes it",
-    ("sicomat.servo.stability", "sicomat.frequency.margins"):
-        "the verdict's margins: goes with the servo.stability → frequency.loops knot (C2)",
-    ("sicomat.servo.loop", "sicomat.simulation.program"):
-        "the loop lowers itself to the kernel's program ops (LinearBlock, Sum, ...), which live in "
-        "simulation/: the op vocabulary belongs below servo (C2, one lowering per block)",
 }
 
 
@@ -334,7 +327,6 @@ LONG_MODULES: dict[str, str] = {
     "sicomat.reduction.error": "what a reduction cost (frequency errors on a pole-aware grid) and its result",
     "sicomat.reduction.modal": "modal truncation on an ordered real Schur form (the rigid/flexible split)",
     "sicomat.frequency.margins": "stability margins of a loop gain on a grid (all crossovers) and the bandwidth",
-    "sicomat.frequency.loops": "frequency responses of the servo loops with the digital effects exact",
     "sicomat.tuning.frequency": "the frequency approach of the tuning (rigid closed form, then the complete model)",
     "sicomat.servo.loop": "the servo loop: resolved from the axis description and lowered to a hybrid program",
     "sicomat.cli.main": "the CLI's commands, each delegating to the library",

@@ -15,7 +15,7 @@ from sicomat.servo.loop import build_servo_loop
 from sicomat.io.modelfile import with_overrides
 from sicomat.motion.setpoints import Profile, trapezoid_profile
 from sicomat.simulation import loop_program
-from sicomat.simulation import program as p
+from sicomat.servo import program as p
 from sicomat.simulation.continuous import constrained_dynamics, discretize
 from sicomat.simulation.envelope import curvature_bounds
 from sicomat.simulation.kernel import run

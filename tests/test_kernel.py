@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from sicomat.errors import ModelError, SicomatError
-from sicomat.simulation import program as p
+from sicomat.servo import program as p
 from sicomat.simulation.continuous import constrained_dynamics, discretize, discretize_many
 from sicomat.simulation.kernel import SimulationDiverged, bare_loop, run, run_batch
 

@@ -18,7 +18,8 @@ from sicomat.frequency.loops import LoopAnalysis
 from sicomat.motion.setpoints import step_profile, trapezoid_profile
 from sicomat.simulation import simulate
 from sicomat.simulation.checks import (FINAL_ERROR_BAND, final_error_warning, limit_cycle_warning, simulation_verdict)
-from sicomat.servo.stability import Verdict, combine, loop_poles, loop_verdict, margins_warnings
+from sicomat.frequency.margins import margins_warnings
+from sicomat.servo.stability import Verdict, combine, loop_poles, loop_verdict
 from sicomat.simulation.timeseries import TimeSeries
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

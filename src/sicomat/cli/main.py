@@ -7,8 +7,7 @@ from typing import List, Optional
 
 import typer
 
-from ._common import (AxisOption, JsonOption, OneLineErrors, PlotOption, SetOption, emit_json, exit_for, guarded, load,
-                      magnification_option, number)
+from ._common import (AxisOption, JsonOption, OneLineErrors, PlotOption, SetOption, emit_json, exit_for, guarded, load, magnification_option, number)
 from .progress import progress_bar
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, cls=OneLineErrors,

@@ -2,7 +2,7 @@
 bandwidth."""
 
 from .loops import LOOPS, LoopAnalysis, loop_response, default_omega
-from .margins import Margins, stability_margins, closed_loop, sensitivity, closed_loop_bandwidth
+from .margins import (Margins, stability_margins, closed_loop, sensitivity, closed_loop_bandwidth, margins_warnings)
 
 __all__ = [
     "LOOPS",
@@ -14,4 +14,5 @@ __all__ = [
     "closed_loop",
     "sensitivity",
     "closed_loop_bandwidth",
+    "margins_warnings",
 ]

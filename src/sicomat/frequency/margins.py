@@ -54,7 +54,8 @@ if TYPE_CHECKING:  # pragma: no cover
     import pandas
     from matplotlib.figure import Figure
 
-__all__ = ["Margins", "stability_margins", "closed_loop", "sensitivity", "closed_loop_bandwidth"]
+__all__ = ["Margins", "stability_margins", "closed_loop", "sensitivity", "closed_loop_bandwidth",
+           "margins_warnings"]
 
 _MINUS_3DB = 20.0 * np.log10(np.sqrt(0.5))     # −3.0103 dB
 _NYQUIST_REACH = 0.95                          # grid must end above this fraction of π/T
@@ -585,3 +586,30 @@ def _frozen(values: np.ndarray) -> np.ndarray:
 def _json_float(value: float) -> float | None:
     value = float(value)
     return value if np.isfinite(value) else None
+
+
+def margins_warnings(margins: Margins, loop: str, stable: bool | None, *,
+                     open_loop_unstable: bool = False) -> list[str]:
+    """The margins' own verdict (GM < 0 dB, PM < 0°) as sentences, reconciled with the poles'
+    verdict ``stable``: negative margins on a stable closed loop mean a conditionally stable loop;
+    positive ones on an unstable closed loop mean the grid missed a crossover or the open loop
+    itself is unstable (``open_loop_unstable``: the position loop around an unstable velocity loop,
+    whose margins mean nothing)."""
+    if open_loop_unstable:
+        return [f"{loop} loop: its open loop contains the unstable velocity loop: its margins mean nothing"]
+    gm, pm = margins.gain_margin_db, margins.phase_margin_deg
+    negative = []
+    if np.isfinite(gm) and gm < 0:
+        negative.append(f"gain margin {gm:.1f} dB < 0")
+    if np.isfinite(pm) and pm < 0:
+        negative.append(f"phase margin {pm:.1f}° < 0")
+    if negative and stable is not False:
+        what = " and ".join(negative)
+        return [f"{loop} loop: {what}, yet the closed loop's poles are stable: the loop is conditionally "
+                f"stable (a lower gain destabilises it)" if stable else f"{loop} loop: {what}"]
+    if negative:
+        return [f"{loop} loop: {' and '.join(negative)}"]
+    if stable is False:
+        return [f"{loop} loop: the margins read off the frequency grid are positive, but the closed loop "
+                f"has unstable poles (a crossover outside the grid, or an unstable open loop)"]
+    return []

@@ -6,7 +6,7 @@ from .contour import contour_error, segment_distance
 from .gcode import GCodeError, parse_gcode, SUPPORTED_G, SUPPORTED_WORDS
 from .interpolator import AxisSetpoint, PathSamples, interpolate
 from .path import Line, Arc, Path, CircleTestPath, circle_test_path, RADIUS_RTOL, RADIUS_ATOL
-from .setpoints import SetpointProfile, Profile, profile_from_spec, lowers, step_profile, ramp_profile, trapezoid_profile
+from .setpoints import (SetpointProfile, Profile, profile_from_spec, lowers, step_profile, ramp_profile, trapezoid_profile)
 from .trajectory import JerkProfile, scurve_profile, scurve_sequence, scurve_durations
 
 __all__ = [

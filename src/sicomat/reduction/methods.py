@@ -99,7 +99,7 @@ def _tool(axis: "Axis") -> str | None:
 
 def _order_for_band(plant, band_hz: tuple[float, float]) -> int:
     """States of the modes up to twice the band's upper limit (rigid part included)."""
-    from ..reduction.modal import spectral_split
+    from .modal import spectral_split
 
     split = spectral_split(plant)
     poles = split.flexible.poles()

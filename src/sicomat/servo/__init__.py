@@ -7,7 +7,7 @@ from .drive import DriveModel
 from .blocks import (Registry, DriveKind, ControllerKind, DRIVES, CONTROLLERS, drive_kind, drive_model, FirstOrderDrive, PIController, IPController, TransferFunctionController, linear_law, loop_delays)
 from .linear import LoopModel
 from .loop import ServoLoop, build_servo_loop, servo_plant, servo_program, SetpointTable, derived_signals
-from .stability import (GROWTH_TOLERANCE, LoopPoles, Verdict, position_closed_loop, loop_poles, loop_verdict, margins_warnings, combine)
+from .stability import (GROWTH_TOLERANCE, LoopPoles, Verdict, position_closed_loop, loop_poles, loop_verdict, combine)
 
 __all__ = [
     "AnalogLoop",
@@ -44,6 +44,5 @@ __all__ = [
     "position_closed_loop",
     "loop_poles",
     "loop_verdict",
-    "margins_warnings",
     "combine",
 ]

@@ -2,7 +2,7 @@
 
 ``build_servo_loop`` resolves an axis description into numbers (gains in physical units, sensor
 conversions, rigid mass); ``servo_program`` lowers it, with sampled setpoints, into the
-:class:`~sicomat.simulation.program.HybridProgram` the kernel runs. Every block lowers to the same few
+:class:`~sicomat.servo.program.HybridProgram` the kernel runs. Every block lowers to the same few
 element kinds (linear blocks, sums, saturations, quantizers, delays, current limit, clamping gate):
 the velocity law and the drive come from their kind's one lowering (:mod:`sicomat.servo.blocks`),
 so a new controller or drive type is one class there, and needs nothing here.
@@ -26,7 +26,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..description.machine import Machine
     from ..lti.plant import Plant
     from ..description.servo import ControllerSpec
-    from ..simulation.program import HybridProgram
+    from .program import HybridProgram
 
 __all__ = ["ServoLoop", "build_servo_loop", "servo_plant", "servo_program", "SetpointTable", "derived_signals"]
 
@@ -238,7 +238,7 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
 
     ``nonlinear=False`` drops the limits, quantizers and Coulomb friction (the linear loop).
     """
-    from ..simulation import program as p
+    from . import program as p
 
     mech, drv, ctrl = loop.mechanics, loop.drive, loop.controller
     h = loop.base_period
@@ -414,7 +414,7 @@ def _assemble(loop: ServoLoop, setpoints: SetpointTable, s: _Slots, ops: list, b
               outputs: list[str]) -> "HybridProgram":
     """The hybrid program: the continuous part ``(A, B, C, D)`` (its first ``2n`` states the
     mechanics' ``(q, q̇)``) with the friction links, the ops and blocks, the setpoint table."""
-    from ..simulation import program as p
+    from . import program as p
 
     mech = loop.mechanics
     n, nx = mech.n, A.shape[0]

@@ -11,7 +11,7 @@ from numba import njit
 
 from sicomat.errors import ModelError
 from .envelope import curvature_bounds
-from .program import ContinuousPart
+from ..servo.program import ContinuousPart
 
 __all__ = ["MAX_FRICTION_LINKS", "DEFAULT_LEVELS", "ConstrainedDynamics", "Discretization",
            "active_links", "constrained_dynamics", "discretize", "discretize_many"]

@@ -1,4 +1,4 @@
-"""The compiled (numba) simulation kernel that executes a :class:`~sicomat.simulation.program.HybridProgram`."""
+"""The compiled (numba) simulation kernel that executes a :class:`~sicomat.servo.program.HybridProgram`."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from .lowering import SAT as _SAT
 from .lowering import SETPOINT as _SETPOINT
 from .lowering import SUM as _SUM
 from .lowering import block_patterns, kernel_matrices, lower, sparse_outputs
-from .program import HybridProgram
+from ..servo.program import HybridProgram
 
 __all__ = ["SimulationDiverged", "KernelResult", "BatchResult", "run", "run_batch", "bare_loop",
            "DIVERGENCE_FACTOR", "DIVERGENCE_WARMUP", "MAX_EVENTS"]
@@ -943,7 +943,7 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
 
     Notes
     -----
-    Base step k follows :mod:`sicomat.simulation.program`: (1) ``y = C x_k + D u_{k-1}`` (the input
+    Base step k follows :mod:`sicomat.servo.program`: (1) ``y = C x_k + D u_{k-1}`` (the input
     still held from the previous step, zero at k = 0) and the acting friction forces (with that
     same input) are written to their slots; (2) the due ops run in list order; (3) ``u_k`` is
     latched, and a stuck link whose holding force now exceeds its static limit breaks away;

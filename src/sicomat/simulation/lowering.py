@@ -1,4 +1,4 @@
-"""Lowering of a :class:`~sicomat.simulation.program.HybridProgram` to the flat arrays the compiled
+"""Lowering of a :class:`~sicomat.servo.program.HybridProgram` to the flat arrays the compiled
 kernel (:mod:`sicomat.simulation.kernel`) reads: op codes and operands, sparse rows of the linear
 blocks, slot lists, and the discretised continuous part in the kernel's layout.
 
@@ -15,7 +15,7 @@ import numpy as np
 
 from sicomat.errors import ModelError
 from .continuous import _kernel_layout, active_links
-from .program import (ClampGate, CurrentLimit, Delay, HybridProgram, LinearOutput, LinearUpdate, Quantize, Saturate, Setpoint, Sum)
+from ..servo.program import (ClampGate, CurrentLimit, Delay, HybridProgram, LinearOutput, LinearUpdate, Quantize, Saturate, Setpoint, Sum)
 
 # op codes, and the int / float operands each op row carries (see lower_ops)
 LIN_OUT, LIN_UPD, SUM, SAT, QUANT, DELAY, CURLIM, CLAMP, SETPOINT = range(9)

@@ -32,7 +32,8 @@ def verdict_subject(which: str) -> str:
 def response_verdict(servo, an, which: str, margins):
     """The verdict of ``bode --loop which``: the poles of the closed loops the transfer depends on
     (unknown, None, for the plant alone) and, for an open loop, what its margins say."""
-    from ..servo.stability import Verdict, loop_verdict, margins_warnings
+    from ..frequency.margins import margins_warnings
+    from ..servo.stability import Verdict, loop_verdict
 
     loops = _judged_loops(which)
     if not loops:
@@ -50,7 +51,8 @@ def margins_payload(servo, an, velocity, position) -> dict[str, Any]:
     """The ``sicomat margins --json`` object: both loops' margins (worst over all crossovers), each
     with its ``stable`` verdict (the closed loop's poles) beside the deprecated ``stable_hint``, and
     the verdict of the whole cascade with the warnings."""
-    from ..servo.stability import loop_verdict, margins_warnings
+    from ..frequency.margins import margins_warnings
+    from ..servo.stability import loop_verdict
 
     verdict = loop_verdict(servo, an=an)
     warnings = []
