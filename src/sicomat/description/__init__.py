@@ -5,12 +5,13 @@ from .base import (Spec, Name, quantity, fail, Mass, Inertia, NonNegativeMass, N
 from .machine import MechanicsSpec, Axis, Machine
 from .mechanics import GROUND, Body, Coupling, Friction, Actuator, Sensor, LumpedSpec, resolve_stretch
 from .motion import (StepSetpoint, RampSetpoint, TrapezoidSetpoint, SCurveSetpoint, SetpointSpec, InterpolatorSpec)
-from .registry import (KINDS, MechanicsKind, SetpointKind, register, spec_class, registered_types, spec_union, union_tags)
+from .registry import (Registry, KINDS, MechanicsKind, SetpointKind, register, spec_class, registered_types, spec_union, union_tags)
 from .servo import DriveSpec, FilterSpec, ControllerSpec
 from .shorthands import ChainSpec, BeltRackSpec, chain_to_lumped, belt_rack_to_lumped, belt_rack_equivalents
 from .units import parse_quantity, Unit, UNITS
 
 __all__ = [
+    "Registry",
     "Spec",
     "Name",
     "quantity",

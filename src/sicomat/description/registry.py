@@ -24,7 +24,7 @@ Examples
 from __future__ import annotations
 
 import typing
-from typing import TYPE_CHECKING, Annotated, Any, Callable, Protocol, TypeVar, Union, runtime_checkable
+from typing import TYPE_CHECKING, Annotated, Any, Callable, Generic, Protocol, TypeVar, Union, runtime_checkable
 
 from pydantic import Field
 
@@ -33,7 +33,7 @@ from ..errors import ModelError
 if TYPE_CHECKING:  # pragma: no cover
     from .mechanics import LumpedSpec
 
-__all__ = ["KINDS", "MechanicsKind", "SetpointKind", "register", "spec_class", "registered_types", "spec_union",
+__all__ = ["Registry", "KINDS", "MechanicsKind", "SetpointKind", "register", "spec_class", "registered_types", "spec_union",
            "union_tags"]
 
 
@@ -157,3 +157,62 @@ def spec_union(kind: str) -> Any:
 def union_tags() -> dict[str, tuple[str, ...]]:
     """Table key under ``[axes.<name>]`` → its registered types (the model-file loader's error messages)."""
     return {key: registered_types(kind) for kind, (key, _) in KINDS.items()}
+
+
+# --------------------------------------------------------------------------- run-time side
+K = TypeVar("K")
+
+
+class Registry(Generic[K]):
+    """The run-time side of a block kind: what each model-file ``type`` lowers to (the servo's drive and
+    controller kinds, the setpoint lowerings of :mod:`sicomat.motion.setpoints`), in registration order.
+    The schema side is :func:`register` above; both are keyed by the same ``type`` strings.
+
+    >>> from sicomat.servo.blocks import CONTROLLERS, controller_kind
+    >>> CONTROLLERS.types()
+    ('P-PI', 'P-IP', 'P-TF')
+    >>> controller_kind("P-ID", path="axes.X.controller.type")
+    Traceback (most recent call last):
+    ...
+    sicomat.errors.ModelError: axes.X.controller.type: unknown controller type; known types: P-PI, P-IP, P-TF (got 'P-ID')
+    """
+
+    def __init__(self, block: str) -> None:
+        self.block = block
+        self._kinds: dict[str, K] = {}
+
+    def register(self, cls: Callable[[], K]) -> Callable[[], K]:
+        """Class decorator: register one instance of ``cls`` under its ``type``."""
+        kind = cls()
+        name = getattr(kind, "type")
+        if name in self._kinds:
+            raise ValueError(f"{self.block} type {name!r} is registered twice")  # pragma: no cover
+        self._kinds[name] = kind
+        return cls
+
+    def add(self, name: str, item: K) -> K:
+        """Register ``item`` (a lowering function, say) under the type ``name``."""
+        if name in self._kinds:
+            raise ValueError(f"{self.block} type {name!r} is registered twice")
+        self._kinds[name] = item
+        return item
+
+    def get(self, name: str) -> K | None:
+        """The item registered as ``name``, or None."""
+        return self._kinds.get(name)
+
+    def lookup(self, name: str, *, path: str | None = None, source: str | None = None) -> K:
+        """The kind registered as ``name``; a located :class:`~sicomat.errors.ModelError` naming the
+        known types otherwise."""
+        try:
+            return self._kinds[name]
+        except (KeyError, TypeError):
+            raise ModelError(f"unknown {self.block} type; known types: {', '.join(self._kinds)}",
+                             source=source, path=path, value=name) from None
+
+    def types(self) -> tuple[str, ...]:
+        """The registered types, in registration order."""
+        return tuple(self._kinds)
+
+    def kinds(self) -> tuple[K, ...]:
+        return tuple(self._kinds.values())

@@ -8,7 +8,7 @@ from typing import Any, Callable, Protocol
 import numpy as np
 
 from ..description.motion import RampSetpoint, SCurveSetpoint, SetpointSpec, StepSetpoint, TrapezoidSetpoint
-from ..description.registry import registered_types
+from ..description.registry import Registry, registered_types
 from .trajectory import JerkProfile, scurve_profile
 
 __all__ = ["SetpointProfile", "Profile", "profile_from_spec", "lowers", "step_profile", "ramp_profile",
@@ -118,7 +118,7 @@ def trapezoid_profile(distance: float, max_velocity: float, max_acceleration: fl
 
 # --------------------------------------------------------------------------- the one lowering
 AnyProfile = SetpointProfile
-_LOWERINGS: dict[str, Callable[[Any], AnyProfile]] = {}
+_LOWERINGS: Registry[Callable[[Any], AnyProfile]] = Registry("setpoint")
 
 
 def lowers(type_name: str) -> Callable[[Callable[[Any], AnyProfile]], Callable[[Any], AnyProfile]]:
@@ -129,8 +129,7 @@ def lowers(type_name: str) -> Callable[[Callable[[Any], AnyProfile]], Callable[[
         raise ValueError(f"no setpoint type {type_name!r} is registered; expected one of {known}")
 
     def decorate(fn: Callable[[Any], AnyProfile]) -> Callable[[Any], AnyProfile]:
-        _LOWERINGS[type_name] = fn
-        return fn
+        return _LOWERINGS.add(type_name, fn)
 
     return decorate
 
@@ -144,10 +143,9 @@ def profile_from_spec(spec: SetpointSpec) -> AnyProfile:
     >>> profile_from_spec(StepSetpoint(type="step", distance=0.01, start=0.1)).breaks
     (0.1,)
     """
-    try:
-        lower = _LOWERINGS[spec.type]
-    except KeyError:
-        raise TypeError(f"setpoint type {spec.type!r} has no lowering in sicomat.motion.setpoints") from None
+    lower = _LOWERINGS.get(spec.type)
+    if lower is None:
+        raise TypeError(f"setpoint type {spec.type!r} has no lowering in sicomat.motion.setpoints")
     return lower(spec)
 
 

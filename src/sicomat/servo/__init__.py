@@ -4,7 +4,7 @@ servo loop and its lowering, the stability verdict."""
 from .analog import AnalogLoop, analog_loop
 from .controller import DiscreteSS, velocity_law, filter_block, difference_block, continuous_filter
 from .drive import DriveModel
-from .blocks import (Registry, DriveKind, ControllerKind, DRIVES, CONTROLLERS, drive_kind, drive_model, FirstOrderDrive, PIController, IPController, TransferFunctionController, linear_law, loop_delays)
+from .blocks import (DriveKind, ControllerKind, DRIVES, CONTROLLERS, drive_kind, drive_model, FirstOrderDrive, PIController, IPController, TransferFunctionController, linear_law, loop_delays)
 from .linear import LoopModel
 from .loop import ServoLoop, build_servo_loop, servo_plant, servo_program, SetpointTable, derived_signals
 from .stability import (GROWTH_TOLERANCE, LoopPoles, Verdict, position_closed_loop, loop_poles, loop_verdict, combine)
@@ -19,7 +19,6 @@ __all__ = [
     "continuous_filter",
     "DriveModel",
     "drive_model",
-    "Registry",
     "DriveKind",
     "ControllerKind",
     "DRIVES",

@@ -25,65 +25,22 @@ fields of the description (``description/servo.py``), which the schema validates
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable, Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from .controller import DiscreteSS, velocity_law
 from .drive import DriveModel
+from ..description.registry import Registry
 from ..errors import ModelError
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..description.servo import ControllerSpec, DriveSpec
     from .loop import ServoLoop
 
-__all__ = ["Registry", "DriveKind", "ControllerKind", "DRIVES", "CONTROLLERS", "drive_kind", "drive_model", "controller_kind",
+__all__ = ["DriveKind", "ControllerKind", "DRIVES", "CONTROLLERS", "drive_kind", "drive_model", "controller_kind",
            "FirstOrderDrive", "PIController", "IPController", "TransferFunctionController", "linear_law",
            "loop_delays"]
-
-T = TypeVar("T")
-
-
-class Registry(Generic[T]):
-    """Block kinds by the ``type`` a model file gives them.
-
-    >>> CONTROLLERS.types()
-    ('P-PI', 'P-IP', 'P-TF')
-    >>> controller_kind("P-ID", path="axes.X.controller.type")
-    Traceback (most recent call last):
-    ...
-    sicomat.errors.ModelError: axes.X.controller.type: unknown controller type; known types: P-PI, P-IP, P-TF (got 'P-ID')
-    """
-
-    def __init__(self, block: str) -> None:
-        self.block = block
-        self._kinds: dict[str, T] = {}
-
-    def register(self, cls: Callable[[], T]) -> Callable[[], T]:
-        """Class decorator: register one instance of ``cls`` under its ``type``."""
-        kind = cls()
-        name = getattr(kind, "type")
-        if name in self._kinds:
-            raise ValueError(f"{self.block} type {name!r} is registered twice")  # pragma: no cover
-        self._kinds[name] = kind
-        return cls
-
-    def lookup(self, name: str, *, path: str | None = None, source: str | None = None) -> T:
-        """The kind registered as ``name``; a located :class:`~sicomat.errors.ModelError` naming the
-        known types otherwise."""
-        try:
-            return self._kinds[name]
-        except (KeyError, TypeError):
-            raise ModelError(f"unknown {self.block} type; known types: {', '.join(self._kinds)}",
-                             source=source, path=path, value=name) from None
-
-    def types(self) -> tuple[str, ...]:
-        """The registered types, in registration order."""
-        return tuple(self._kinds)
-
-    def kinds(self) -> tuple[T, ...]:
-        return tuple(self._kinds.values())
-
 
 # --------------------------------------------------------------------------- drives
 class DriveKind(Protocol):
