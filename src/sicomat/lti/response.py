@@ -4,7 +4,8 @@ returned in.
 
 Strategies (:class:`Evaluator`, ``method="auto"``)
 --------------------------------------------------
-- **direct** (``n ≤`` :data:`DIRECT_MAX_STATES` = 64): one LU solve of ``(pI − A) x = B`` per point.
+- **direct** (``n ≤`` :data:`DIRECT_MAX_STATES` = 64): one LU solve of ``(pI − A) x = B`` per point,
+  ``A`` diagonally balanced first (an exact similarity by powers of 2).
 - **diagonal** (``n > 64`` and ``κ₂(V) <`` :data:`DIAGONAL_MAX_COND` = 1e10, ``V`` the eigenvectors of
   ``A``): ``H(p) = D + Σᵢ (C vᵢ)(wᵢᴴ B) / (p − λᵢ)``, one eigen-decomposition, ``O(n)`` per point.
 - **split** (``n > 64``, ``κ₂(V) ≥ 1e10``: defective or near-defective ``A``, typically rigid-body modes
@@ -17,7 +18,7 @@ Accuracy contract
 -----------------
 To first order, with ``ε`` the unit round-off, relative to ``|H(p)|`` at each point:
 
-- direct: ``n ε κ₂(pI − A) ‖C‖ ‖x‖ / |H|`` (LU is backward stable: the computed ``x`` solves
+- direct: ``n ε κ₂(pI − A) ‖C‖ ‖x‖ / |H|``, ``A`` the balanced matrix (LU is backward stable: the computed ``x`` solves
   ``(pI − A + δ) x = B`` with ``‖δ‖ ≤ n ε ‖pI − A‖``; ``‖C‖‖x‖/|H|`` is what the output map loses to
   cancellation). This is ``tests/accuracy.transfer_accuracy``.
 - diagonal: ``n ε κ₂(V) Σᵢ ‖C vᵢ‖ ‖wᵢᴴ B‖ / |p − λᵢ| / |H|``: the eigenvectors, and so the residues,
@@ -259,13 +260,18 @@ class Evaluator:
                 self._diagonal = (lam, C @ V, np.linalg.solve(V, B.astype(complex)))
         if method == "split":
             self._split = SplitResponse(split_state_space(self.A, B, C, D))
+        if method == "direct":
+            # diagonal balancing (a similarity by powers of 2, exact; the transfer is unchanged): states
+            # in mixed units (m beside m/s beside N/m ≈ 1e6) otherwise inflate κ(pI − A) by orders
+            scale = scipy.linalg.matrix_balance(self.A, permute=False, separate=True)[1][0] if n else np.ones(0)
+            self._balanced = ((self.A * scale[None, :]) / scale[:, None], B / scale[:, None], C * scale[None, :])
         self.method = method
 
     def __call__(self, points) -> np.ndarray:
         """``H`` at the points: array ``(q, m, n_points)``, complex."""
         p = np.atleast_1d(np.asarray(points, dtype=complex))
         if self.method == "direct":
-            return _direct(self.A, self.B, self.C, self.D, p)
+            return _direct(*self._balanced, self.D, p)
         if self._split is not None:
             return np.moveaxis(self._split(p), 0, -1)
         lam, CV, WB = self._diagonal
