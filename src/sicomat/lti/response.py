@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.linalg
 
-from .spectral import SpectralSplit, split_state_space
+from .spectral import SpectralSplit, StateBlock, select_positions, split_block, split_state_space
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas
@@ -332,8 +332,8 @@ def static_gain(A, B, C, D=None, *, discrete: bool) -> np.ndarray:
     """The exact value at ω = 0 of ``C (pI − A)⁻¹ B + D``: at ``p = 1`` (``z = 1``) for a discrete
     ``A``, at ``p = 0`` (``s = 0``) for a continuous one.
 
-    Eigenvalues at the point (within :data:`STATIC_POLE_TOL`) are split off by an ordered real
-    Schur form and a Sylvester equation: with ``N = A₁ − pI`` (made exactly nilpotent), their part
+    Eigenvalues at the point (within :data:`STATIC_POLE_TOL`) are split off by the ordered real
+    Schur form and Sylvester equation of :func:`~sicomat.lti.spectral.split_block`: with ``N = A₁ − pI`` (made exactly nilpotent), their part
     of the transfer is ``Σⱼ C₁Nʲ B₁ / (p' − p)^{j+1}``, a polynomial in ``1/(p' − p)`` without a
     constant term. When every coefficient vanishes (the pole is not seen from that input to that
     output, e.g. the drift of the rigid-body position in a velocity loop: the positions ramp, the
@@ -384,15 +384,14 @@ def static_gain(A, B, C, D=None, *, discrete: bool) -> np.ndarray:
     B = B / scale[:, None]
     C = C * scale[None, :]
     tol = STATIC_POLE_TOL * max(1.0, float(np.linalg.norm(A, 1)))
-    T, Z, k = scipy.linalg.schur(A, output="real", sort=lambda re, im: np.hypot(re - p, im) <= tol)
+    T, Z = scipy.linalg.schur(A, output="real")
     Bz, Cz = Z.T @ B, C @ Z
+    at_point, rest = split_block(StateBlock(T, Bz, Cz), select_positions(T, lambda v: abs(v - p) <= tol))
+    k = at_point.n
     if k == 0:
         return D - Cz @ np.linalg.solve(T - p * np.eye(n), Bz)
-    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
-    X = scipy.linalg.solve_sylvester(T11, -T22, -T12) if k < n else np.zeros((k, 0))
-    B1, C1 = Bz[:k] - X @ Bz[k:], Cz[:, :k]
-    B2, C2 = Bz[k:], Cz[:, :k] @ X + Cz[:, k:]
-    out = D - C2 @ np.linalg.solve(T22 - p * np.eye(n - k), B2) if k < n else D.copy()
+    T11, B1, C1 = at_point.A, at_point.B, at_point.C
+    out = D - rest.C @ np.linalg.solve(rest.A - p * np.eye(n - k), rest.B) if k < n else D.copy()
     # Laurent coefficients of the part at the point; "vanishing" is relative to round-off of C·B
     N = np.triu(T11 - p * np.eye(k), 1)
     floor = np.sqrt(np.finfo(float).eps) * np.linalg.norm(C, 2) * np.linalg.norm(B, 2)
