@@ -165,7 +165,7 @@ class SplitResponse:
             try:
                 lam, V = np.linalg.eig(f.A)
                 W = np.linalg.inv(V)
-                kappa = np.linalg.norm(V) * np.linalg.norm(W) / f.n
+                kappa = float(np.linalg.norm(V) * np.linalg.norm(W) / f.n)
             except np.linalg.LinAlgError:
                 kappa = np.inf
             if np.isfinite(kappa) and kappa < FLEXIBLE_MAX_COND:
@@ -249,6 +249,7 @@ class Evaluator:
         self.A, self.B, self.C, self.D = A.reshape(n, n), B, C, D
         self._diagonal: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._split: SplitResponse | None = None
+        self._balanced: tuple[np.ndarray, np.ndarray, np.ndarray] = (self.A, B, C)
         careful = method == "auto"
         if method == "auto":
             method = "direct" if n <= DIRECT_MAX_STATES else "diagonal"
@@ -274,6 +275,7 @@ class Evaluator:
             return _direct(*self._balanced, self.D, p)
         if self._split is not None:
             return np.moveaxis(self._split(p), 0, -1)
+        assert self._diagonal is not None  # the strategy is "diagonal" (internal invariant)
         lam, CV, WB = self._diagonal
         out = np.einsum("ik,kw,kj->ijw", CV, 1.0 / (p[None, :] - lam[:, None]), WB)
         return (out + self.D[:, :, None]).astype(complex)
@@ -398,6 +400,6 @@ def static_gain(A, B, C, D=None, *, discrete: bool) -> np.ndarray:
     power = np.eye(k)
     seen = np.zeros(out.shape, dtype=bool)
     for j in range(k):
-        seen |= np.abs(C1 @ power @ B1) > floor * max(1.0, np.linalg.norm(N, 2)) ** j
+        seen |= np.abs(C1 @ power @ B1) > floor * max(1.0, float(np.linalg.norm(N, 2))) ** j
         power = power @ N
     return np.where(seen, np.inf, out)

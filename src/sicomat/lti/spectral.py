@@ -230,7 +230,7 @@ def split_state_space(A, B, C, D, *, rigid_tol: float = RIGID_TOL, marginal: boo
         # a slow real pole is a pole at 0 only if it is within its own round-off of 0: the velocity
         # pole −c/m of a rigid motion with viscous guides is well conditioned and stays, while a
         # rigid pole pushed off 0 by the round-off of K's row sums has a tiny reciprocal condition
-        if abs(lam[i]) > 1e3 * np.finfo(float).eps * np.linalg.norm(T) / _reciprocal_condition(T, i):
+        if abs(lam[i]) > 1e3 * np.finfo(float).eps * np.linalg.norm(T) / _reciprocal_condition(T, int(i)):
             is_zero[i] = False
     n_zero = int(is_zero.sum())
     first = is_zero.copy()
