@@ -17,6 +17,7 @@ continuous closed velocity loop at Tp; a continuous position loop is evaluated a
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -401,7 +402,7 @@ def loop_response(loop: "ServoLoop", which: str, omega: np.ndarray | None = None
 
 def _continuous_response(A, B, c, s) -> np.ndarray:
     """``c (sI − A)⁻¹ b`` of the plant's first input at points s."""
-    return transfer_at(A, B[:, :1], c[None, :], points=s)[0, 0]
+    return _plant_factor(A, B, c, s)
 
 
 def _tf_at(spec, s: np.ndarray) -> np.ndarray:
@@ -418,7 +419,23 @@ def _with_controller(loop: "ServoLoop", **update) -> "ServoLoop":
 
 def _discrete_response(Phi, Gamma, c, z) -> np.ndarray:
     """``c (zI − Φ)⁻¹ γ`` of the plant's first input at points z."""
-    return transfer_at(Phi, Gamma[:, :1], c[None, :], points=z)[0, 0]
+    return _plant_factor(Phi, Gamma, c, z)
+
+
+def _plant_factor(A, B, c, points) -> np.ndarray:
+    """``c (pI − A)⁻¹ b`` (first input), memoised: the plant factor of the velocity loop does not depend
+    on the gains, and a tuning evaluates it once per trial on the same grid (read-only result)."""
+    A, B, c, points = (np.ascontiguousarray(x) for x in (A, np.asarray(B)[:, :1], c, np.asarray(points, dtype=complex)))
+    return _plant_factor_cached(A.shape[0], A.tobytes(), B.tobytes(), c.tobytes(), points.tobytes())
+
+
+@lru_cache(maxsize=8)
+def _plant_factor_cached(n: int, a: bytes, b: bytes, c: bytes, p: bytes) -> np.ndarray:
+    A = np.frombuffer(a).reshape(n, n)
+    H = transfer_at(A, np.frombuffer(b).reshape(n, 1), np.frombuffer(c).reshape(1, n),
+                    points=np.frombuffer(p, dtype=complex))[0, 0]
+    H.setflags(write=False)
+    return H
 
 
 def _filter(spec, period: float, path: str) -> DiscreteSS:
