@@ -424,8 +424,9 @@ def _discrete_response(Phi, Gamma, c, z) -> np.ndarray:
 
 def _plant_factor(A, B, c, points) -> np.ndarray:
     """``c (pI − A)⁻¹ b`` (first input), memoised: the plant factor of the velocity loop does not depend
-    on the gains, and a tuning evaluates it once per trial on the same grid (read-only result)."""
-    A, B, c, points = (np.ascontiguousarray(x) for x in (A, np.asarray(B)[:, :1], c, np.asarray(points, dtype=complex)))
+    on the gains, and ``margins``/``bode`` evaluate it for several transfers on one grid (read-only)."""
+    A, B, c = (np.ascontiguousarray(x, dtype=float) for x in (A, np.asarray(B)[:, :1], c))
+    points = np.ascontiguousarray(points, dtype=complex)
     return _plant_factor_cached(A.shape[0], A.tobytes(), B.tobytes(), c.tobytes(), points.tobytes())
 
 
