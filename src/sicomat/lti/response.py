@@ -126,9 +126,10 @@ class FrequencyResponse:
 
 # --------------------------------------------------------------------------- the evaluator
 DIRECT_MAX_STATES = 64
-"""Up to this many states the response is evaluated by one LU solve per point (backward stable; the
-cost ``n³/3`` per point is below that of an eigen-decomposition for any grid of more than ~n points
-only up to a few dozen states). Above, the diagonal (eigen) form costs ``O(n)`` per point."""
+"""Up to this many states the response is evaluated by one LU solve per point (backward stable, the
+most accurate strategy, ``n³/3`` per point). Above, the diagonal (eigen) form: one ``O(n³)``
+decomposition, then ``O(n)`` per point — on a 10,000-point grid of a 400-state model two orders of
+magnitude faster than the LU solves."""
 
 DIAGONAL_MAX_COND = 1e10
 """Above :data:`DIRECT_MAX_STATES`, the eigen-decomposition of the whole ``A`` is used when
