@@ -4,7 +4,8 @@
 2 N·s/m of material damping in each spring, no spring to the frame: one rigid-body mode, a double
 pole at 0; flexible modes from 1.57 to 2000 rad/s with ζ from about 1.6e-6 to 2e-3), from the force
 on the first mass to the position of the last, on 10,000 log-spaced frequencies from 0.1 to 1e4
-rad/s. Ours: ``frequency.modal_form`` + ``frequency.continuous_response`` (both timed). Peer:
+rad/s. Ours: ``sicomat.lti.response.transfer_at`` (the one evaluator: its diagonal strategy here,
+400 > ``DIRECT_MAX_STATES``; building the form and evaluating it both timed). Peer:
 ``plant.to_control().frequency_response(omega)`` (python-control uses slycot's ``tb05ad`` when slycot
 is installed and silently falls back to one dense solve per frequency otherwise; which one ran is
 reported; the conversion ``to_control()`` is not timed). Accuracy: ``max|ours − peer| / max|peer|``, the
@@ -12,6 +13,13 @@ largest relative difference where ``|peer| > 1e-6 max|peer|`` (below, the true r
 chain falls like ω^-400 and both results are round-off), and both against a reference at 20 of
 those frequencies: a direct complex solve of ``(jωI − A) x = B`` refined twice with residuals in
 extended precision (``clongdouble``).
+
+(a2) **Small and sampled cases** of the same evaluator (its direct LU strategy): the 5M4S's servo
+plant (mechanics + current loop, from the drive's current to the position sensor) at ``s = jω`` on
+2,000 log-spaced frequencies up to the velocity loop's Nyquist frequency, and its exact ZOH at the
+velocity period evaluated at ``z = e^{jωTv}``. Peer: python-control's ``frequency_response`` of the
+continuous ``StateSpace`` and of the discrete one (``dt = Tv``); accuracy against the same refined
+solve as (a).
 
 (b) **Tuning** of the 5M4S (``examples/paper_5m4s.toml``) for a velocity crossover of 125.6 rad/s,
 45° velocity phase margin, 80° position phase margin. Peer, the straightforward python-control
@@ -48,7 +56,7 @@ import numpy as np  # noqa: E402
 import scipy.optimize  # noqa: E402
 
 import sicomat  # noqa: E402
-from sicomat.lti.response import continuous_response, modal_form  # noqa: E402
+from sicomat.lti.response import Evaluator, transfer_at, zoh_matrices  # noqa: E402
 from sicomat.servo.loop import ServoLoop, build_servo_loop  # noqa: E402
 from sicomat.frequency.loops import LoopAnalysis  # noqa: E402
 from sicomat.frequency.margins import stability_margins  # noqa: E402
@@ -73,17 +81,19 @@ def chain_plant(n: int = N_MASSES):
 
 
 def reference_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, omega: np.ndarray,
-                       refinements: int = 2) -> tuple[np.ndarray, float]:
-    """``C (jωI − A)⁻¹ B + D`` by dense complex solves with iterative refinement (residuals in clongdouble).
+                       refinements: int = 2, points: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """``C (pI − A)⁻¹ B + D`` at ``p = jω`` (or at ``points``) by dense complex solves with iterative
+    refinement (residuals in clongdouble).
 
     Returns the responses and the largest relative size of the last correction (convergence check).
     """
     n = A.shape[0]
-    out = np.empty(omega.size, complex)
+    points = 1j * np.asarray(omega) if points is None else np.asarray(points)
+    out = np.empty(points.size, complex)
     last = 0.0
     Bl = B.astype(np.clongdouble)
-    for i, w in enumerate(omega):
-        M = 1j * w * np.eye(n) - A
+    for i, p in enumerate(points):
+        M = p * np.eye(n) - A
         x = np.linalg.solve(M, B.astype(complex))
         Ml = M.astype(np.clongdouble)
         for _ in range(refinements):
@@ -116,15 +126,17 @@ def bench_response(quick: bool) -> dict[str, Any]:
     flex = poles[np.abs(poles) >= 1e-3]
     zeta = -flex.real / np.abs(flex)
 
-    def ours() -> np.ndarray:
-        return continuous_response(modal_form(A, B, C, D), omega)[0, 0]
+    s = 1j * omega
 
-    form = modal_form(A, B, C, D)
+    def ours() -> np.ndarray:
+        return transfer_at(A, B, C, D, s)[0, 0]
+
+    form = Evaluator(A, B, C, D)
     ours()
     timings = interleaved({
         "ours": ours,
-        "ours_modal_form": lambda: modal_form(A, B, C, D),
-        "ours_response_only": lambda: continuous_response(form, omega),
+        "ours_modal_form": lambda: Evaluator(A, B, C, D),
+        "ours_response_only": lambda: form(s),
         "peer": lambda: np.asarray(sys_ct.frequency_response(omega).complex).reshape(-1),
     }, {"ours": 2 if quick else 5, "ours_modal_form": 2 if quick else 5, "ours_response_only": 2 if quick else 5,
         "peer": 1 if quick else 2})
@@ -137,6 +149,7 @@ def bench_response(quick: bool) -> dict[str, Any]:
     err_ours = np.abs(H[idx] - R) / np.abs(R)
     err_peer = np.abs(P[idx] - R) / np.abs(R)
     return {
+        "strategy": form.method,
         "model": {"masses": N_MASSES, "states": int(A.shape[0]), "mass_kg": 1.0, "stiffness_N_m": 1e6,
                   "damping_N_s_m": 2.0, "rigid_mode": rigid > 0, "poles_near_zero": rigid,
                   "flexible_rad_s": [float(np.abs(flex).min()), float(np.abs(flex).max())],
@@ -156,6 +169,49 @@ def bench_response(quick: bool) -> dict[str, Any]:
                           "ours_rel_err": err_ours, "peer_rel_err": err_peer},
         },
     }
+
+
+N_SMALL_FREQ = 2_000
+
+
+def bench_small(quick: bool) -> dict[str, Any]:
+    """(a2): the direct strategy on a small plant, continuous and ZOH-sampled, against python-control."""
+    import control
+
+    from sicomat.servo.loop import servo_plant
+
+    loop = build_servo_loop(sicomat.load_model(EXAMPLE_5M4S))
+    ctrl = loop.controller
+    plant = servo_plant(loop)
+    A, B = np.asarray(plant.A), np.asarray(plant.B)[:, :1]
+    C = np.asarray(plant.C)[[plant.outputs.index(f"sensor.{ctrl.position_sensor}")]]
+    D = np.zeros((1, 1))
+    T = ctrl.velocity_period
+    omega = np.logspace(np.log10(2 * np.pi * 0.5), np.log10(0.999 * np.pi / T), N_SMALL_FREQ)
+    Phi, Gamma = zoh_matrices(A, B, T)
+    z = np.exp(1j * omega * T)
+    cases = {"continuous": (A, B, 1j * omega, control.ss(A, B, C, D)),
+             "sampled": (Phi, Gamma, z, control.ss(Phi, Gamma, C, D, T))}
+    out: dict[str, Any] = {"states": int(A.shape[0]), "n_omega": N_SMALL_FREQ, "period_s": T}
+    for name, (Am, Bm, points, peer_sys) in cases.items():
+        def ours(Am=Am, Bm=Bm, points=points) -> np.ndarray:
+            return transfer_at(Am, Bm, C, D, points)[0, 0]
+
+        def peer(peer_sys=peer_sys) -> np.ndarray:
+            return np.asarray(peer_sys.frequency_response(omega).complex).reshape(-1)
+
+        ours()
+        peer()
+        timings = interleaved({"ours": ours, "peer": peer}, 3 if quick else 15)
+        H, P = timings["ours"].value, timings["peer"].value
+        idx = np.linspace(0, omega.size - 1, N_REFERENCE).round().astype(int)
+        R, _ = reference_response(Am, Bm, C, D, omega[idx], points=points[idx])
+        out[name] = {"strategy": Evaluator(Am, Bm, C, D).method,
+                     "times": {k: v.to_dict() for k, v in timings.items()},
+                     "speedup": speedup(timings["peer"], timings["ours"]),
+                     "ours_max_rel_err": float(np.max(np.abs(H[idx] - R) / np.abs(R))),
+                     "peer_max_rel_err": float(np.max(np.abs(P[idx] - R) / np.abs(R)))}
+    return out
 
 
 # ------------------------------------------------------------------------------------ (b) tuning
@@ -289,8 +345,9 @@ def bench_tuning(quick: bool) -> dict[str, Any]:
 def run(quick: bool = False) -> dict[str, Any]:
     """Both benchmarks of issue 5; returns the figures."""
     response = bench_response(quick)
+    small = bench_small(quick)
     tuning = bench_tuning(quick)
-    return {"response": response, "tuning": tuning, "goals": GOALS,
+    return {"response": response, "small": small, "tuning": tuning, "goals": GOALS,
             "goals_met": {"response_10x": response["speedup"]["best"] >= GOALS["response_speedup_min"],
                           "tuning_5x_literal": tuning["speedup"]["literal"]["best"] >= GOALS["tuning_speedup_min"],
                           "tuning_5x_log": tuning["speedup"]["log"]["best"] >= GOALS["tuning_speedup_min"],
@@ -312,8 +369,9 @@ def report(r: dict[str, Any]) -> str:
     T = a["times"]
     peer_best = T["peer"]["best_s"]
     rows = []
-    for key, label in (("ours", "modal_form + continuous_response"), ("ours_modal_form", "  of which modal_form"),
-                       ("ours_response_only", "  of which continuous_response"),
+    for key, label in (("ours", f"transfer_at ({a.get('strategy', '?')} strategy)"),
+                       ("ours_modal_form", "  of which building the Evaluator"),
+                       ("ours_response_only", "  of which evaluating it"),
                        ("peer", f"[peer] python-control frequency_response ({a['peer_path']})")):
         x = T[key]
         rows.append([label, 1e3 * x["best_s"], 1e3 * x["median_s"], 1e3 * x["worst_s"], x["n"],
@@ -334,6 +392,20 @@ def report(r: dict[str, Any]) -> str:
     ]))
     better = "ours" if ref["ours_max_rel_err"] < ref["peer_max_rel_err"] else "the peer"
     lines.append(f"more accurate against the reference (max error): {better}")
+    sm = r.get("small")
+    if sm:
+        lines.append("")
+        lines.append(f"Small and sampled cases: 5M4S servo plant, {sm['states']} states, {sm['n_omega']} frequencies "
+                     f"up to Nyquist (Tv = {1e6 * sm['period_s']:g} µs)")
+        rows = []
+        for name in ("continuous", "sampled"):
+            c = sm[name]
+            rows.append([f"{name} ({c['strategy']})", 1e3 * c["times"]["ours"]["best_s"],
+                         1e3 * c["times"]["ours"]["median_s"], 1e3 * c["times"]["peer"]["best_s"],
+                         1e3 * c["times"]["peer"]["median_s"], c["speedup"]["best"], c["speedup"]["median"],
+                         c["ours_max_rel_err"], c["peer_max_rel_err"]])
+        lines.append(table(["case", "ours best ms", "ours median ms", "peer best ms", "peer median ms",
+                            "x faster (best)", "x faster (median)", "ours max rel err", "peer max rel err"], rows))
 
     lines.append("")
     tg = t["targets"]

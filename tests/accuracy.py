@@ -57,3 +57,65 @@ def transfer_accuracy(A, B, C, D, points, inp: int = 0, out: int = 0) -> np.ndar
         H = C[out] @ x + D[out, inp]
         bound[i] = n * np.linalg.cond(M) * EPS * np.linalg.norm(C[out]) * np.linalg.norm(x) / abs(H)
     return bound
+
+
+def diagonal_accuracy(A, B, C, points, inp: int = 0, out: int = 0) -> np.ndarray:
+    """Relative accuracy, per point, of ``H(p) = Σᵢ (C vᵢ)(wᵢᴴ B)/(p − λᵢ)`` from an eigen-decomposition
+    (the diagonal strategy of ``sicomat.lti.response``): its contract
+    ``n·eps·κ₂(V)·Σᵢ‖C vᵢ‖‖wᵢᴴB‖/|p − λᵢ| / |H|`` for the residues (eigenvectors are known to
+    ``n·eps·κ₂(V)`` relative, backward stable QR), plus ``Σᵢ |rᵢ|·δλᵢ/|p − λᵢ|² / |H|`` for the poles,
+    ``δλᵢ`` from :func:`eigenvalue_accuracy` (balanced, as geev computes them)."""
+    A, B, C = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, C))
+    n = A.shape[0]
+    lam, V = scipy.linalg.eig(A)
+    W = np.linalg.inv(V)
+    c = np.abs(C[out] @ V)
+    b = np.abs(W @ B[:, inp])
+    dlam = eigenvalue_accuracy(A, lam, balanced=True)
+    kappa = np.linalg.cond(V)
+    p = np.asarray(points, dtype=complex)
+    dist = np.abs(p[:, None] - lam[None, :])
+    H = (C[out] @ V) @ ((W @ B[:, inp])[:, None] / (p[None, :] - lam[:, None]))
+    return (n * EPS * kappa * (c * b / dist).sum(axis=1) + (c * b * dlam / dist ** 2).sum(axis=1)) / np.abs(H)
+
+
+def exact_transfer(A, B, C, points, inp: int = 0, out: int = 0) -> np.ndarray:
+    """``C (pI − A)⁻¹ B`` of the double-precision ``A, B, C`` and points, in exact rational complex
+    arithmetic (Gaussian elimination on pairs of Fractions), rounded once to complex128 at the end:
+    an oracle accurate to ``eps`` relative. Small systems only (cost grows fast with n)."""
+    from fractions import Fraction as F
+
+    A, B, C = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, C))
+    n = A.shape[0]
+
+    def mul(a, c):
+        return (a[0] * c[0] - a[1] * c[1], a[0] * c[1] + a[1] * c[0])
+
+    def div(a, c):
+        d = c[0] * c[0] + c[1] * c[1]
+        return ((a[0] * c[0] + a[1] * c[1]) / d, (a[1] * c[0] - a[0] * c[1]) / d)
+
+    result = []
+    for p in np.asarray(points, dtype=complex):
+        M = [[(F(float(p.real)) * (i == j) - F(float(A[i, j])), F(float(p.imag)) * (i == j)) for j in range(n)]
+             + [(F(float(B[i, inp])), F(0))] for i in range(n)]
+        for k in range(n):
+            piv = next(i for i in range(k, n) if M[i][k] != (0, 0))
+            M[k], M[piv] = M[piv], M[k]
+            for i in range(k + 1, n):
+                if M[i][k] != (0, 0):
+                    f = div(M[i][k], M[k][k])
+                    for j in range(k, n + 1):
+                        t = mul(f, M[k][j])
+                        M[i][j] = (M[i][j][0] - t[0], M[i][j][1] - t[1])
+        x: list = [None] * n
+        for i in reversed(range(n)):
+            acc = M[i][n]
+            for j in range(i + 1, n):
+                t = mul(M[i][j], x[j])
+                acc = (acc[0] - t[0], acc[1] - t[1])
+            x[i] = div(acc, M[i][i])
+        re = sum(F(float(C[out, i])) * x[i][0] for i in range(n))
+        im = sum(F(float(C[out, i])) * x[i][1] for i in range(n))
+        result.append(complex(float(re), float(im)))
+    return np.array(result)

@@ -16,6 +16,7 @@ continuous closed velocity loop at Tp; a continuous position loop is evaluated a
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -24,7 +25,7 @@ from ..servo.blocks import linear_law
 from ..servo.controller import DiscreteSS, continuous_filter
 from ..servo.linear import LoopModel
 from ..errors import ModelError
-from ..lti.response import FrequencyResponse, modal_form, response_at, static_gain
+from ..lti.response import FrequencyResponse, static_gain, transfer_at
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
@@ -65,11 +66,7 @@ def default_omega(loop: "ServoLoop", which: str, n: int = 2000) -> np.ndarray:
 
 def _ss_response(ss: DiscreteSS, z: np.ndarray) -> np.ndarray:
     """SISO response of a small discrete block at points z."""
-    A, B, C, D = (np.atleast_2d(m) for m in (ss.A, ss.B, ss.C, ss.D))
-    if A.size == 0:
-        return np.full(z.shape, D[0, 0], dtype=complex)
-    inv = np.linalg.inv(z[:, None, None] * np.eye(A.shape[0])[None] - A[None])
-    return (C @ inv @ B)[:, 0, 0] + D[0, 0]
+    return transfer_at(ss.A, ss.B, ss.C, ss.D, z)[0, 0]
 
 
 class LoopAnalysis(LoopModel):
@@ -150,15 +147,14 @@ class LoopAnalysis(LoopModel):
         effort (both held over Tp) to the measured position (sampled at Tp)."""
         Ap, Bp, C = self.position_model(Kp, Ti)
         z = np.exp(1j * omega * self.loop.controller.position_period)
-        form = modal_form(Ap, Bp, C[:1], cluster=0.0)
-        H = response_at(form, z)
+        H = transfer_at(Ap, Bp, C[:1], points=z)
         return H[0, 0], H[0, 1]
 
     def position_continuous(self, omega: np.ndarray, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray]:
         """For a continuous position loop: the transfers at ``s = jω`` from the velocity command
         and from the feedforward effort to the measured position, through the analog velocity loop."""
         A, B, C = self.analog_closed_loop(Kp, Ti)
-        H = _response(A, B, C[:1], 1j * np.asarray(omega, dtype=float))
+        H = transfer_at(A, B, C[:1], points=1j * np.asarray(omega, dtype=float))
         return H[0, 0], H[0, 1]
 
     def closed_loop_static_gain(self, which: str, Kp: float | None = None, Ti: float | None = None,
@@ -258,8 +254,7 @@ class LoopAnalysis(LoopModel):
     def _plant(self, omega: np.ndarray) -> FrequencyResponse:
         mech, loop = self.loop.mechanics, self.loop
         plant = mech.state_space().select(inputs=[loop.actuator], outputs=[loop.controller.position_sensor])
-        form = modal_form(plant.A, plant.B, plant.C, plant.D)
-        H = response_at(form, 1j * omega)[0, 0]
+        H = transfer_at(plant.A, plant.B, plant.C, plant.D, 1j * omega)[0, 0]
         return FrequencyResponse(omega, H, "plant", None,
                                  info={"input": f"{loop.actuator} effort", "output": loop.controller.position_sensor})
 
@@ -272,7 +267,7 @@ class LoopAnalysis(LoopModel):
         vel = loop.mechanics.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
         outs = [f"sensor.{ctrl.position_sensor}", f"sensor.{vel.name}", "tool.position"]
         sub = plant.select(outputs=outs)
-        G = _response(sub.A, sub.B, sub.C, 1j * omega) + sub.D[:, :, None]  # (3, 2, n)
+        G = transfer_at(sub.A, sub.B, sub.C, sub.D, 1j * omega)  # (3, 2, n)
         Tv, Tp = ctrl.velocity_period, ctrl.position_period
         cp, ci, act, _ = self.velocity_factors(omega, Kp, Ti)
         meas_v = self._measurement(omega)
@@ -317,25 +312,9 @@ def loop_response(loop: "ServoLoop", which: str, omega: np.ndarray | None = None
     return LoopAnalysis.of(loop).response(which, omega)
 
 
-DIRECT_MAX_STATES = 64
-"""Up to this many states a response is evaluated by one LU solve per point (backward stable); a
-modal form costs less for larger models but loses digits where a closed loop rolls off steeply (the
-modal terms cancel: 1e-5 relative at 2 kHz on a two-mass analog cascade)."""
-
-
-def _response(A, B, C, points) -> np.ndarray:
-    """``C (pI − A)⁻¹ B`` at the points p, shape (n_out, n_in, n_points)."""
-    A = np.asarray(A, dtype=float)
-    if A.shape[0] > DIRECT_MAX_STATES:
-        return response_at(modal_form(A, B, C), points)
-    p = np.asarray(points, dtype=complex)
-    X = np.linalg.solve(p[:, None, None] * np.eye(A.shape[0]) - A, np.asarray(B, dtype=complex)[None])
-    return np.moveaxis(np.asarray(C) @ X, 0, -1)
-
-
 def _continuous_response(A, B, c, s) -> np.ndarray:
     """``c (sI − A)⁻¹ b`` of the plant's first input at points s."""
-    return _response(A, B[:, :1], c[None, :], s)[0, 0]
+    return _plant_factor(A, B, c, s)
 
 
 def _tf_at(spec, s: np.ndarray) -> np.ndarray:
@@ -345,5 +324,24 @@ def _tf_at(spec, s: np.ndarray) -> np.ndarray:
 
 
 def _discrete_response(Phi, Gamma, c, z) -> np.ndarray:
-    form = modal_form(Phi, Gamma, c[None, :], cluster=0.0)
-    return response_at(form, z)[0, 0]
+    """``c (zI − Φ)⁻¹ γ`` of the plant's first input at points z."""
+    return _plant_factor(Phi, Gamma, c, z)
+
+
+def _plant_factor(A, B, c, points) -> np.ndarray:
+    """``c (pI − A)⁻¹ b`` (first input), memoised: the plant factor of the velocity loop does not depend
+    on the gains, and ``margins``/``bode`` evaluate it for several transfers on one grid (read-only)."""
+    A, B, c = (np.ascontiguousarray(x, dtype=float) for x in (A, np.asarray(B)[:, :1], c))
+    points = np.ascontiguousarray(points, dtype=complex)
+    return _plant_factor_cached(A.shape[0], A.tobytes(), B.tobytes(), c.tobytes(), points.tobytes())
+
+
+@lru_cache(maxsize=8)
+def _plant_factor_cached(n: int, a: bytes, b: bytes, c: bytes, p: bytes) -> np.ndarray:
+    A = np.frombuffer(a).reshape(n, n)
+    H = transfer_at(A, np.frombuffer(b).reshape(n, 1), np.frombuffer(c).reshape(1, n),
+                    points=np.frombuffer(p, dtype=complex))[0, 0]
+    H.setflags(write=False)
+    return H
+
+

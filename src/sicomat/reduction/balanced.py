@@ -33,7 +33,8 @@ from scipy.linalg import lapack
 
 from ..errors import AnalysisError, ModelError
 from ..lti.plant import Plant
-from .modal import (RIGID_TOL, SpectralSplit, StateBlock, check_order, schur_eigenvalues, schur_triplet, select_positions, spectral_split, split_block)
+from ..lti.spectral import (RIGID_TOL, SpectralSplit, StateBlock, schur_eigenvalues, schur_triplet, select_positions, spectral_split, split_block)
+from .modal import check_order
 
 if TYPE_CHECKING:  # pragma: no cover
     from .error import ReductionResult

@@ -1,10 +1,9 @@
 """What a reduction cost: frequency errors on a pole-aware grid, and the :class:`ReductionResult`.
 
 Frequency responses are evaluated from the additive split ``G = rigid + flexible`` of
-:func:`~sicomat.reduction.modal.spectral_split`: the rigid block (a few states) by batched small
-solves, the flexible block from its eigen-decomposition (one vectorised product for all
-frequencies), or, when its eigenvectors are ill-conditioned, by triangular solves on its complex
-Schur form. The grid is log-spaced and also holds every pole's damped and natural frequency (and
+:func:`~sicomat.lti.spectral.spectral_split` by the engine's
+:class:`~sicomat.lti.response.SplitResponse` (rigid parts that both models keep exactly then cancel
+in the error). The grid is log-spaced and also holds every pole's damped and natural frequency (and
 its half-power points) of both models, so no lightly damped peak falls between two points.
 """
 
@@ -15,10 +14,11 @@ from functools import cached_property
 from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
-import scipy.linalg
 
 from ..errors import ModelError
 from ..lti.plant import Plant
+from ..lti.response import SplitResponse
+from ..lti.spectral import RIGID_TOL, spectral_split
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -102,60 +102,20 @@ def select_transfer(plant: Plant, inputs: Sequence[str] | str | None = None,
 
 
 # --------------------------------------------------------------------------- frequency responses
-class _Response:
-    """Fast frequency response of a plant from its rigid/flexible split."""
+class _Response(SplitResponse):
+    """The engine's split response of a plant, evaluated at ``s = jω`` (ω arrays in rad/s)."""
 
     def __init__(self, plant: Plant, rigid_tol: float) -> None:
-        from .modal import spectral_split
-
-        split = spectral_split(plant, rigid_tol=rigid_tol)
-        self.split = split
-        r, f = split.rigid, split.flexible
-        self.poles = np.concatenate([r.poles(), f.poles()])
-        self.n_rigid = r.n
-        self._modal = None
-        self._schur = None
-        if f.n:
-            try:
-                lam, V = np.linalg.eig(f.A)
-                W = np.linalg.inv(V)
-                kappa = float(np.linalg.norm(V) * np.linalg.norm(W) / f.n)
-            except np.linalg.LinAlgError:
-                kappa = np.inf
-            if np.isfinite(kappa) and kappa < 1e8:
-                self._modal = (lam, f.C @ V, W @ f.B)
-            else:  # ill-conditioned eigenvectors: complex Schur form, triangular solves
-                Tc, Zc = scipy.linalg.rsf2csf(f.A, np.eye(f.n))
-                self._schur = (Tc, Zc.conj().T @ f.B, f.C @ Zc)
+        super().__init__(spectral_split(plant, rigid_tol=rigid_tol))
+        self.n_rigid = self.split.rigid.n
 
     def rigid(self, omega: np.ndarray) -> np.ndarray:
         """Response of the rigid block ``(n_ω, ny, nu)`` (ω > 0)."""
-        r = self.split.rigid
-        ny, nu = self.split.D.shape
-        if r.n == 0:
-            return np.zeros((len(omega), ny, nu), complex)
-        s = 1j * np.asarray(omega, float)
-        M = s[:, None, None] * np.eye(r.n)[None] - r.A[None]
-        X = np.linalg.solve(M, np.broadcast_to(r.B.astype(complex), (len(s), r.n, nu)))
-        return r.C[None] @ X
+        return super().rigid(1j * np.asarray(omega, float))
 
     def flexible(self, omega: np.ndarray) -> np.ndarray:
         """Response of the flexible block plus the feedthrough ``(n_ω, ny, nu)``."""
-        s = 1j * np.asarray(omega, float)
-        out = np.broadcast_to(self.split.D.astype(complex), (len(s), *self.split.D.shape)).copy()
-        if self._modal is not None:
-            lam, CV, WB = self._modal
-            H = 1.0 / (s[:, None] - lam[None, :])
-            out += np.einsum("ik,wk,kj->wij", CV, H, WB, optimize=True)
-        elif self._schur is not None:
-            Tc, Bc, Cc = self._schur
-            eye = np.eye(Tc.shape[0])
-            for k, sk in enumerate(s):
-                out[k] += Cc @ scipy.linalg.solve_triangular(sk * eye - Tc, Bc, check_finite=False)
-        return out
-
-    def __call__(self, omega: np.ndarray) -> np.ndarray:
-        return self.rigid(omega) + self.flexible(omega)
+        return super().flexible(1j * np.asarray(omega, float))
 
 
 def frequency_response(plant: Plant, omega: np.ndarray, *, rigid_tol: float | None = None) -> np.ndarray:
@@ -168,7 +128,7 @@ def frequency_response(plant: Plant, omega: np.ndarray, *, rigid_tol: float | No
     omega : array_like
         Angular frequencies (rad/s), ``> 0`` when the plant has poles at 0.
     rigid_tol : float, optional
-        Relative tolerance for poles at 0 (default :data:`~sicomat.reduction.modal.RIGID_TOL`).
+        Relative tolerance for poles at 0 (default :data:`~sicomat.lti.spectral.RIGID_TOL`).
 
     Examples
     --------
@@ -178,8 +138,6 @@ def frequency_response(plant: Plant, omega: np.ndarray, *, rigid_tol: float | No
     >>> complex(frequency_response(plant, [10.0])[0, 0, 0].round(12))  # 1 / (m (j10)²)
     (-0.005+0j)
     """
-    from .modal import RIGID_TOL
-
     return _Response(plant, RIGID_TOL if rigid_tol is None else rigid_tol)(np.atleast_1d(omega))
 
 
@@ -289,7 +247,7 @@ class ErrorMetrics:
         Where that maximum is.
     hinf_relative_error : float or None
         ``hinf_error`` over the H∞ norm of the full model's flexible part (rigid-body part removed,
-        see :func:`~sicomat.reduction.modal.spectral_split`).
+        see :func:`~sicomat.lti.spectral.spectral_split`).
     dc_gain_error, dc_gain_relative_error : float, float or None
         ``σ̄(G_f(0) − G_{r,f}(0))`` of the flexible parts (the whole plants when there is no rigid
         mode), absolute and relative to ``σ̄(G_f(0))``.
@@ -358,7 +316,7 @@ def error_metrics(full: Plant, reduced: Plant, *, band_hz: tuple[float, float] |
     band_hz : (float, float), optional
         Band of interest (Hz) for the band errors.
     rigid_tol : float, optional
-        Relative tolerance for poles at 0 (default :data:`~sicomat.reduction.modal.RIGID_TOL`).
+        Relative tolerance for poles at 0 (default :data:`~sicomat.lti.spectral.RIGID_TOL`).
     points_per_decade : int, optional
         Density of the log-spaced part of the grid (the pole frequencies are always added).
 
@@ -375,8 +333,6 @@ def error_metrics(full: Plant, reduced: Plant, *, band_hz: tuple[float, float] |
     >>> error_metrics(plant, plant).hinf_error
     0.0
     """
-    from .modal import RIGID_TOL
-
     band_hz = check_band(band_hz)
     if full.inputs != reduced.inputs or full.outputs != reduced.outputs:
         raise ModelError("the reduced plant must have the full plant's inputs and outputs",

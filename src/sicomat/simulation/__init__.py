@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..motion.setpoints import SetpointProfile
 
 __all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs",
-           "TimeSeries", "StepMetrics", "step_metrics"]
+           "TimeSeries", "StepMetrics", "step_metrics", "StepFigures", "step_figures"]
 # the multi-axis runs (simulate_path, circle_test: simulation/paths.py) are not re-exported here:
 # paths.py uses this module's simulate(), and re-exporting it would knot the two (an import cycle)
 
