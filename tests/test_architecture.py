@@ -323,7 +323,6 @@ LONG_MODULES: dict[str, str] = {
     "sicomat.reduction.balanced": "Gramian-based reduction: balanced truncation and its variants (Schur, frequency-limited, Hankel norm)",
     "sicomat.reduction.physical": "physical regrouping: a smaller lumped model that keeps named bodies",
     "sicomat.reduction.error": "what a reduction cost (frequency errors on a pole-aware grid) and its result",
-    "sicomat.reduction.modal": "modal truncation on an ordered real Schur form (the rigid/flexible split)",
     "sicomat.frequency.margins": "stability margins of a loop gain on a grid (all crossovers) and the bandwidth",
     "sicomat.tuning.frequency": "the frequency approach of the tuning (rigid closed form, then the complete model)",
     "sicomat.servo.loop": "the servo loop: resolved from the axis description and lowered to a hybrid program",
