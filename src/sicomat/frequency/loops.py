@@ -66,7 +66,7 @@ def default_omega(loop: "ServoLoop", which: str, n: int = 2000) -> np.ndarray:
 
 def _ss_response(ss: DiscreteSS, z: np.ndarray) -> np.ndarray:
     """SISO response of a small discrete block at points z."""
-    return transfer_at(ss.A, ss.B, ss.C, ss.D, z)[0, 0]
+    return transfer_at(ss.A, ss.B, ss.C, ss.D, z, discrete=True)[0, 0]
 
 
 class LoopAnalysis(LoopModel):
@@ -147,7 +147,7 @@ class LoopAnalysis(LoopModel):
         effort (both held over Tp) to the measured position (sampled at Tp)."""
         Ap, Bp, C = self.position_model(Kp, Ti)
         z = np.exp(1j * omega * self.loop.controller.position_period)
-        H = transfer_at(Ap, Bp, C[:1], points=z)
+        H = transfer_at(Ap, Bp, C[:1], points=z, discrete=True)
         return H[0, 0], H[0, 1]
 
     def position_continuous(self, omega: np.ndarray, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray]:
@@ -314,7 +314,7 @@ def loop_response(loop: "ServoLoop", which: str, omega: np.ndarray | None = None
 
 def _continuous_response(A, B, c, s) -> np.ndarray:
     """``c (sI − A)⁻¹ b`` of the plant's first input at points s."""
-    return _plant_factor(A, B, c, s)
+    return _plant_factor(A, B, c, s, discrete=False)
 
 
 def _tf_at(spec, s: np.ndarray) -> np.ndarray:
@@ -325,22 +325,22 @@ def _tf_at(spec, s: np.ndarray) -> np.ndarray:
 
 def _discrete_response(Phi, Gamma, c, z) -> np.ndarray:
     """``c (zI − Φ)⁻¹ γ`` of the plant's first input at points z."""
-    return _plant_factor(Phi, Gamma, c, z)
+    return _plant_factor(Phi, Gamma, c, z, discrete=True)
 
 
-def _plant_factor(A, B, c, points) -> np.ndarray:
+def _plant_factor(A, B, c, points, *, discrete: bool) -> np.ndarray:
     """``c (pI − A)⁻¹ b`` (first input), memoised: the plant factor of the velocity loop does not depend
     on the gains, and ``margins``/``bode`` evaluate it for several transfers on one grid (read-only)."""
     A, B, c = (np.ascontiguousarray(x, dtype=float) for x in (A, np.asarray(B)[:, :1], c))
     points = np.ascontiguousarray(points, dtype=complex)
-    return _plant_factor_cached(A.shape[0], A.tobytes(), B.tobytes(), c.tobytes(), points.tobytes())
+    return _plant_factor_cached(A.shape[0], A.tobytes(), B.tobytes(), c.tobytes(), points.tobytes(), discrete)
 
 
 @lru_cache(maxsize=8)
-def _plant_factor_cached(n: int, a: bytes, b: bytes, c: bytes, p: bytes) -> np.ndarray:
+def _plant_factor_cached(n: int, a: bytes, b: bytes, c: bytes, p: bytes, discrete: bool) -> np.ndarray:
     A = np.frombuffer(a).reshape(n, n)
     H = transfer_at(A, np.frombuffer(b).reshape(n, 1), np.frombuffer(c).reshape(1, n),
-                    points=np.frombuffer(p, dtype=complex))[0, 0]
+                    points=np.frombuffer(p, dtype=complex), discrete=discrete)[0, 0]
     H.setflags(write=False)
     return H
 
