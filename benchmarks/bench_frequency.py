@@ -14,7 +14,9 @@ chain falls like ω^-400 and both results are round-off), and both against a ref
 those frequencies: a direct complex solve of ``(jωI − A) x = B`` refined twice with residuals in
 extended precision (``clongdouble``).
 
-(a2) **Small and sampled cases** of the same evaluator (its direct LU strategy): the 5M4S's servo
+(a2) **Small and sampled cases** of the same evaluator (LU per point for the continuous system, the
+diagonal form for the sampled one, ``discrete=True`` as the loops ask; the former diagonal form is timed
+beside as ``former``, the evaluator before issue 11 used it for both): the 5M4S's servo
 plant (mechanics + current loop, from the drive's current to the position sensor) at ``s = jω`` on
 2,000 log-spaced frequencies up to the velocity loop's Nyquist frequency, and its exact ZOH at the
 velocity period evaluated at ``z = e^{jωTv}``. Peer: python-control's ``frequency_response`` of the
@@ -190,25 +192,31 @@ def bench_small(quick: bool) -> dict[str, Any]:
     omega = np.logspace(np.log10(2 * np.pi * 0.5), np.log10(0.999 * np.pi / T), N_SMALL_FREQ)
     Phi, Gamma = zoh_matrices(A, B, T)
     z = np.exp(1j * omega * T)
-    cases = {"continuous": (A, B, 1j * omega, control.ss(A, B, C, D)),
-             "sampled": (Phi, Gamma, z, control.ss(Phi, Gamma, C, D, T))}
+    cases = {"continuous": (A, B, 1j * omega, control.ss(A, B, C, D), False),
+             "sampled": (Phi, Gamma, z, control.ss(Phi, Gamma, C, D, T), True)}
     out: dict[str, Any] = {"states": int(A.shape[0]), "n_omega": N_SMALL_FREQ, "period_s": T}
-    for name, (Am, Bm, points, peer_sys) in cases.items():
-        def ours(Am=Am, Bm=Bm, points=points) -> np.ndarray:
-            return transfer_at(Am, Bm, C, D, points)[0, 0]
+    for name, (Am, Bm, points, peer_sys, discrete) in cases.items():
+        def ours(Am=Am, Bm=Bm, points=points, discrete=discrete) -> np.ndarray:
+            return transfer_at(Am, Bm, C, D, points, discrete=discrete)[0, 0]
+
+        def former(Am=Am, Bm=Bm, points=points) -> np.ndarray:
+            return transfer_at(Am, Bm, C, D, points, method="diagonal")[0, 0]
 
         def peer(peer_sys=peer_sys) -> np.ndarray:
             return np.asarray(peer_sys.frequency_response(omega).complex).reshape(-1)
 
         ours()
+        former()
         peer()
-        timings = interleaved({"ours": ours, "peer": peer}, 3 if quick else 15)
-        H, P = timings["ours"].value, timings["peer"].value
+        timings = interleaved({"ours": ours, "former": former, "peer": peer}, 3 if quick else 15)
+        H, P, F = timings["ours"].value, timings["peer"].value, timings["former"].value
         idx = np.linspace(0, omega.size - 1, N_REFERENCE).round().astype(int)
         R, _ = reference_response(Am, Bm, C, D, omega[idx], points=points[idx])
-        out[name] = {"strategy": Evaluator(Am, Bm, C, D).method,
+        out[name] = {"strategy": Evaluator(Am, Bm, C, D, discrete=discrete).method,
                      "times": {k: v.to_dict() for k, v in timings.items()},
                      "speedup": speedup(timings["peer"], timings["ours"]),
+                     "vs_former": speedup(timings["former"], timings["ours"]),
+                     "former_max_rel_err": float(np.max(np.abs(F[idx] - R) / np.abs(R))),
                      "ours_max_rel_err": float(np.max(np.abs(H[idx] - R) / np.abs(R))),
                      "peer_max_rel_err": float(np.max(np.abs(P[idx] - R) / np.abs(R)))}
     return out
@@ -401,11 +409,14 @@ def report(r: dict[str, Any]) -> str:
         for name in ("continuous", "sampled"):
             c = sm[name]
             rows.append([f"{name} ({c['strategy']})", 1e3 * c["times"]["ours"]["best_s"],
-                         1e3 * c["times"]["ours"]["median_s"], 1e3 * c["times"]["peer"]["best_s"],
+                         1e3 * c["times"]["ours"]["median_s"], 1e3 * c["times"]["former"]["best_s"],
+                         1e3 * c["times"]["peer"]["best_s"],
                          1e3 * c["times"]["peer"]["median_s"], c["speedup"]["best"], c["speedup"]["median"],
-                         c["ours_max_rel_err"], c["peer_max_rel_err"]])
-        lines.append(table(["case", "ours best ms", "ours median ms", "peer best ms", "peer median ms",
-                            "x faster (best)", "x faster (median)", "ours max rel err", "peer max rel err"], rows))
+                         c["vs_former"]["best"], c["ours_max_rel_err"], c["former_max_rel_err"],
+                         c["peer_max_rel_err"]])
+        lines.append(table(["case", "ours best ms", "ours median ms", "former diag. best ms", "peer best ms",
+                            "peer median ms", "x faster (best)", "x faster (median)", "x vs former (best)",
+                            "ours max rel err", "former max rel err", "peer max rel err"], rows))
 
     lines.append("")
     tg = t["targets"]
