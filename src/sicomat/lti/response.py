@@ -44,6 +44,7 @@ hundreds of times. No strategy is switched within one evaluation, so a response 
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -264,8 +265,9 @@ class Evaluator:
         if method == "auto":
             method = "direct" if n <= DIRECT_MAX_STATES and not discrete else "diagonal"
         if method == "diagonal":
-            lam, V = scipy.linalg.eig(self.A)
-            if careful and not np.linalg.cond(V) < DIAGONAL_MAX_COND:   # also catches a singular V (nan, inf)
+            lam, V = scipy.linalg.eig(self.A, check_finite=False)
+            lu = _lu(V)
+            if careful and not _condition(V, lu) < DIAGONAL_MAX_COND:   # also catches a singular V
                 method = "split" if n > DIRECT_MAX_STATES else "direct"
             else:
                 self._diagonal = (lam, C @ V, np.linalg.solve(V, B.astype(complex)))
@@ -289,6 +291,25 @@ class Evaluator:
         lam, CV, WB = self._diagonal
         out = np.einsum("ik,kw,kj->ijw", CV, 1.0 / (p[None, :] - lam[:, None]), WB)
         return (out + self.D[:, :, None]).astype(complex)
+
+
+def _lu(V: np.ndarray):
+    """LU factors of the eigenvector matrix (a singular one gives a zero pivot, caught by ``_condition``)."""
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+        return scipy.linalg.lu_factor(V, check_finite=False)
+
+
+def _condition(V: np.ndarray, lu) -> float:
+    """κ₁(V) estimated by LAPACK's ``gecon`` from the LU factors (``O(n²)``, within a factor ``n`` of κ₂;
+    the thresholds it is compared with are orders of magnitude): a 400-state model's eigenvector matrix
+    costs 5 ms this way against 35 ms for the SVD of ``np.linalg.cond``. ``inf`` for a singular ``V``."""
+    factors = lu[0]
+    if not np.all(np.isfinite(factors)) or np.any(np.diag(factors) == 0):
+        return np.inf
+    rcond, info = scipy.linalg.lapack.zgecon(factors.astype(complex, copy=False), float(np.linalg.norm(V, 1)),
+                                             norm="1")
+    return np.inf if info != 0 or not rcond > 0 else float(1.0 / rcond)
 
 
 def transfer_at(A, B, C, D=None, points=(), *, method: str = "auto", discrete: bool = False) -> np.ndarray:
