@@ -226,9 +226,12 @@ class Evaluator:
     D : array_like, optional
         Feedthrough ``(q, m)``; zero by default.
     method : {"auto", "direct", "diagonal", "split"}
-        ``"auto"``: ``"direct"`` up to :data:`DIRECT_MAX_STATES` states, above it ``"diagonal"``
-        when κ₂(V) < :data:`DIAGONAL_MAX_COND`, else ``"split"``. The others force a strategy (tests,
-        benchmarks).
+        ``"auto"``: ``"direct"`` for a continuous system up to :data:`DIRECT_MAX_STATES` states,
+        otherwise ``"diagonal"`` when κ(V) < :data:`DIAGONAL_MAX_COND`, else ``"split"`` (``"direct"``
+        for a small discrete system). The others force a strategy (tests, benchmarks).
+    discrete : bool
+        True for a sampled system evaluated at ``z = e^{jωT}``: a small one then takes the diagonal
+        form (the module docstring says why).
 
     Attributes
     ----------
