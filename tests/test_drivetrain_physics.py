@@ -8,6 +8,7 @@ ball screw with root diameter 28 mm, E = 2.06e11 Pa, G = 7.9e10 Pa, ρ = 7850 kg
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -86,10 +87,18 @@ def test_series_fixed_fixed_two_bearings(x: float, expected: float) -> None:
 
 
 def test_fixed_fixed_with_rigid_bearings_reduces_to_the_textbook_form() -> None:
-    # bearings 1e30 (rigid to 1e-21): 1/k = 1/k_nut + (0.25·0.75)/(EA·1) → 403 498 225.1 N/m
+    # bearings 1e30 (rigid to 1e-21): 1/k = 1/k_nut + (0.25·0.75)/(EA·1) → 403 521 504.0 N/m
     # (1/1e9 + 1/676 506 373.23 = 1e-9 + 1.478182e-9 = 2.478182e-9)
     k = dt.screw_axial_stiffness(D_ROOT, 1.0, 0.25, "fixed-fixed", nut_stiffness=K_NUT, bearing_stiffness=1e30)
-    assert k == pytest.approx(1 / (1 / 1e9 + 1 / 676_506_373.23), rel=REL)
+    assert k == pytest.approx(403_521_504.02, rel=REL)
+
+
+def test_fixed_fixed_rigid_shaft_has_both_bearings_in_parallel() -> None:
+    # E = 1e30 (shaft rigid to 1e-21): both fixed bearings carry the nut, 1/k = 1/k_nut + 1/(2·k_b)
+    # = 1e-9 + 1/3e9 → k = 7.5e8 (THK's one-bearing form would give 1/(1e-9 + 1/1.5e9) = 6e8)
+    k = dt.screw_axial_stiffness(D_ROOT, 1.0, 0.3, "fixed-fixed", nut_stiffness=K_NUT, bearing_stiffness=K_BEARING,
+                                 youngs_modulus=1e30)
+    assert k == pytest.approx(7.5e8, rel=1e-12)
 
 
 # --------------------------------------------------------------------------- torsion, inertia
@@ -167,7 +176,7 @@ def test_linear_belt_softest_at_the_idler() -> None:
     xs = [i / 100 for i in range(1, 101)]
     ks = [dt.belt_axis_stiffness(C_SPEC, dt.linear_belt_spans(x, 1.0)) for x in xs]
     assert xs[ks.index(min(ks))] == 1.0
-    assert all(a > b for a, b in zip(ks, ks[1:], strict=False))   # monotonic towards the idler
+    assert all(a > b for a, b in itertools.pairwise(ks))   # monotonic towards the idler
 
 
 @pytest.mark.parametrize(("x", "expected"), [(0.25, 1_333_333.3333), (0.5, 1_000_000.0)])

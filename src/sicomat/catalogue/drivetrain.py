@@ -13,13 +13,31 @@ from collections.abc import Iterable
 from sicomat.errors import ModelError
 
 __all__ = [
-    "STEEL_DENSITY", "STEEL_YOUNGS_MODULUS", "STEEL_SHEAR_MODULUS", "MOUNTINGS", "WHIRL_FACTORS",
-    "series_stiffness", "parallel_stiffness", "torsional_to_translational", "translational_to_torsional",
-    "shaft_axial_stiffness", "screw_axial_stiffness", "screw_torsional_stiffness", "screw_inertia",
-    "reflected_inertia", "critical_speed", "dn_speed_limit",
-    "belt_span_stiffness", "belt_axis_stiffness", "linear_belt_spans", "omega_belt_spans",
-    "pulley_inertia", "rotating_equivalent_mass",
-    "gearbox_stiffness_at_input", "inertia_at_input", "pinion_pitch_radius",
+    "MOUNTINGS",
+    "STEEL_DENSITY",
+    "STEEL_SHEAR_MODULUS",
+    "STEEL_YOUNGS_MODULUS",
+    "WHIRL_FACTORS",
+    "belt_axis_stiffness",
+    "belt_span_stiffness",
+    "critical_speed",
+    "dn_speed_limit",
+    "gearbox_stiffness_at_input",
+    "inertia_at_input",
+    "linear_belt_spans",
+    "omega_belt_spans",
+    "parallel_stiffness",
+    "pinion_pitch_radius",
+    "pulley_inertia",
+    "reflected_inertia",
+    "rotating_equivalent_mass",
+    "screw_axial_stiffness",
+    "screw_inertia",
+    "screw_torsional_stiffness",
+    "series_stiffness",
+    "shaft_axial_stiffness",
+    "torsional_to_translational",
+    "translational_to_torsional",
 ]
 
 STEEL_DENSITY = 7850.0
@@ -128,7 +146,9 @@ def screw_axial_stiffness(root_diameter: float, length: float, position: float, 
       the nut in series: ``1/k = 1/k_nut + 1/(k_path1 + k_path2)``. With rigid bearings it reduces to
       ``A·E·L/(a·b)`` in series with the nut. ``bearing_stiffness`` is that of ONE fixed support (each is a
       preloaded angular-contact pair that takes load both ways, so both act in tension and compression).
-      THK's simpler form adds one bearing in series with ``A·E·L/(a·b)``; ours is never stiffer.
+      THK's simpler form (one bearing in series with ``A·E·L/(a·b)``) is never stiffer than this one
+      (``f(s) = 1/(1/s + 1/k_b)`` is concave with ``f(0) = 0``, so ``f(a') + f(b') ≥ f(a' + b')``): with a
+      rigid shaft it gives ``k_b`` where both preloaded bearings give ``2·k_b``.
     """
     _check_positive("nut_stiffness", nut_stiffness)
     _check_positive("bearing_stiffness", bearing_stiffness)

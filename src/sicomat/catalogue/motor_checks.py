@@ -14,9 +14,18 @@ from dataclasses import dataclass
 from sicomat.errors import ModelError
 
 __all__ = [
-    "KT_PER", "KE_PER", "RESISTANCE_PER", "DATASHEET_TOLERANCE", "ConsistencyWarning",
-    "torque_constant_rms", "back_emf_line_rms", "phase_resistance", "per_krpm_to_per_rad_s",
-    "expected_torque_constant", "mechanical_time_constant", "datasheet_warnings",
+    "DATASHEET_TOLERANCE",
+    "KE_PER",
+    "KT_PER",
+    "RESISTANCE_PER",
+    "ConsistencyWarning",
+    "back_emf_line_rms",
+    "datasheet_warnings",
+    "expected_torque_constant",
+    "mechanical_time_constant",
+    "per_krpm_to_per_rad_s",
+    "phase_resistance",
+    "torque_constant_rms",
 ]
 
 KT_PER = ("rms", "peak")
