@@ -227,8 +227,8 @@ def dn_speed_limit(diameter: float, dn_mm_rpm: float) -> float:
 
     ``n_max = DN/d_mm`` min⁻¹, returned as ``n_max·2π/60``. ``diameter`` is the ball-centre (≈ nominal)
     diameter. The limit belongs to the nut's recirculation design and is the vendor's (THK lists it per
-    model, "DN value"; typical 70 000–76 000 for standard external return, 130 000–160 000 for high-speed
-    designs): no default is assumed.
+    model, "DN value"; Engineers Edge, "Critical Speed Ball Screw": 76 200 for standard external return,
+    133 300 with solid deflectors, 140 000 for internal transfer): no default is assumed.
     """
     _check_positive("diameter", diameter)
     _check_positive("dn_mm_rpm", dn_mm_rpm)
