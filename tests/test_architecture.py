@@ -36,6 +36,7 @@ _ANALYSES = _CORE | {"io"}
 ALLOWED: dict[str, set[str]] = {
     "foundation": set(),
     "description": {"foundation"},
+    "catalogue": {"foundation", "description"},
     "io": {"foundation", "description"},
     "motion": {"foundation", "description"},
     "lti": {"foundation"},
