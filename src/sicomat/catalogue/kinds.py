@@ -46,9 +46,13 @@ def _unit(name: str) -> Unit:
     return _EXTRA_UNITS[name] if name in _EXTRA_UNITS else UNITS[name]
 
 
-def _q(name: str, **bounds: float) -> Any:
+def _parse(name: str) -> BeforeValidator:
     unit = _unit(name)
-    return Annotated[float, BeforeValidator(lambda v: parse_quantity(v, unit)), Field(**bounds), Dimension(unit)]
+    return BeforeValidator(lambda v: parse_quantity(v, unit))
+
+
+def _dim(name: str) -> Dimension:
+    return Dimension(_unit(name))
 
 
 def _parse_lead(value: Any) -> float:
@@ -62,37 +66,37 @@ def _parse_lead(value: Any) -> float:
             raise ValueError("expected a lead per revolution (m, e.g. '10 mm' or '10 mm/rev')") from None
 
 
-Positive = _q("dimensionless", gt=0)
-NonNegative = _q("dimensionless", ge=0)
-Torque = _q("torque", gt=0)
-Force = _q("force", gt=0)
-NonNegativeForce = _q("force", ge=0)
-Current = _q("current", gt=0)
-Voltage = _q("voltage", gt=0)
-Resistance = _q("resistance", gt=0)
-Inductance = _q("inductance", gt=0)
-Inertia = _q("inertia", gt=0)
-NonNegativeInertia = _q("inertia", ge=0)
-Mass = _q("mass", gt=0)
-NonNegativeMass = _q("mass", ge=0)
-Length = _q("length", gt=0)
-NonNegativeLength = _q("length", ge=0)
-Angle = _q("angle", ge=0)
-Speed = _q("angular_speed", gt=0)
-LinearSpeed = _q("velocity", gt=0)
-TorsionalStiffness = _q("torsional_stiffness", gt=0)
-LinearStiffness = _q("linear_stiffness", gt=0)
-TorsionalDamping = _q("torsional_damping", ge=0)
-LinearDamping = _q("linear_damping", ge=0)
-TorqueConstant = _q("torque_constant", gt=0)
-ForceConstant = _q("force_constant", gt=0)
-RotaryEmf = _q("rotary_emf", gt=0)
-LinearEmf = _q("linear_emf", gt=0)
-Fraction = _q("fraction", gt=0, le=1)
-SpecificStiffness = _q("specific_stiffness", gt=0)
-MassPerLength = _q("mass_per_length", gt=0)
-Density = _q("density", gt=0)
-Modulus = _q("modulus", gt=0)
+Positive = Annotated[float, _parse("dimensionless"), Field(gt=0), _dim("dimensionless")]
+NonNegative = Annotated[float, _parse("dimensionless"), Field(ge=0), _dim("dimensionless")]
+Torque = Annotated[float, _parse("torque"), Field(gt=0), _dim("torque")]
+Force = Annotated[float, _parse("force"), Field(gt=0), _dim("force")]
+NonNegativeForce = Annotated[float, _parse("force"), Field(ge=0), _dim("force")]
+Current = Annotated[float, _parse("current"), Field(gt=0), _dim("current")]
+Voltage = Annotated[float, _parse("voltage"), Field(gt=0), _dim("voltage")]
+Resistance = Annotated[float, _parse("resistance"), Field(gt=0), _dim("resistance")]
+Inductance = Annotated[float, _parse("inductance"), Field(gt=0), _dim("inductance")]
+Inertia = Annotated[float, _parse("inertia"), Field(gt=0), _dim("inertia")]
+NonNegativeInertia = Annotated[float, _parse("inertia"), Field(ge=0), _dim("inertia")]
+Mass = Annotated[float, _parse("mass"), Field(gt=0), _dim("mass")]
+NonNegativeMass = Annotated[float, _parse("mass"), Field(ge=0), _dim("mass")]
+Length = Annotated[float, _parse("length"), Field(gt=0), _dim("length")]
+NonNegativeLength = Annotated[float, _parse("length"), Field(ge=0), _dim("length")]
+Angle = Annotated[float, _parse("angle"), Field(ge=0), _dim("angle")]
+Speed = Annotated[float, _parse("angular_speed"), Field(gt=0), _dim("angular_speed")]
+LinearSpeed = Annotated[float, _parse("velocity"), Field(gt=0), _dim("velocity")]
+TorsionalStiffness = Annotated[float, _parse("torsional_stiffness"), Field(gt=0), _dim("torsional_stiffness")]
+LinearStiffness = Annotated[float, _parse("linear_stiffness"), Field(gt=0), _dim("linear_stiffness")]
+TorsionalDamping = Annotated[float, _parse("torsional_damping"), Field(ge=0), _dim("torsional_damping")]
+LinearDamping = Annotated[float, _parse("linear_damping"), Field(ge=0), _dim("linear_damping")]
+TorqueConstant = Annotated[float, _parse("torque_constant"), Field(gt=0), _dim("torque_constant")]
+ForceConstant = Annotated[float, _parse("force_constant"), Field(gt=0), _dim("force_constant")]
+RotaryEmf = Annotated[float, _parse("rotary_emf"), Field(gt=0), _dim("rotary_emf")]
+LinearEmf = Annotated[float, _parse("linear_emf"), Field(gt=0), _dim("linear_emf")]
+Fraction = Annotated[float, _parse("fraction"), Field(gt=0, le=1), _dim("fraction")]
+SpecificStiffness = Annotated[float, _parse("specific_stiffness"), Field(gt=0), _dim("specific_stiffness")]
+MassPerLength = Annotated[float, _parse("mass_per_length"), Field(gt=0), _dim("mass_per_length")]
+Density = Annotated[float, _parse("density"), Field(gt=0), _dim("density")]
+Modulus = Annotated[float, _parse("modulus"), Field(gt=0), _dim("modulus")]
 Lead = Annotated[float, BeforeValidator(_parse_lead), Field(gt=0), Dimension(UNITS["length"])]
 
 CurrentBasis = Literal["rms", "peak"]
