@@ -185,6 +185,8 @@ def test_filters_compare_si_values_with_units():
                           for e in screws)
     # without a kind: only the kinds that have the parameter
     assert {e.kind for e in catalogue.select(None, ["torsional_stiffness > 0"])} == {"coupling", "gearbox"}
+    fine = catalogue.select("encoder", ["resolution >= 1000000"])
+    assert {e.id for e in fine} == {"encoder-absolute-20bit", "encoder-absolute-23bit", "encoder-sincos-2048-interpolated"}
     assert parse_condition("max_speed >= 3000 rpm", ["motor"]).values["motor"] == pytest.approx(100 * math.pi)
 
 
@@ -195,6 +197,7 @@ def test_filters_compare_si_values_with_units():
     ("peak_torque ~ 10 N*m", "OPERATOR"),
     ("peak_torque >=", "missing the value"),
     ("mounting > fixed", "compare it with == or !="),
+    ("lead >= ten mm", "unknown unit"),
 ])
 def test_bad_filters(expr, problem):
     with pytest.raises(ModelError) as info:

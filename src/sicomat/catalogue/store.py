@@ -150,9 +150,9 @@ def parse_condition(text: str, kinds: Sequence[str]) -> Condition:
         annotation = str(KINDS[kind].model_fields[name].annotation)
         if "int" in annotation and "Literal" not in annotation:
             try:
-                values[kind] = float(int(raw))
+                values[kind] = float(raw)
             except ValueError:
-                raise bad(f"{name} is a whole number; the value is not") from None
+                raise bad(f"{name} is a plain number (no unit); cannot read the value") from None
         else:
             if operator not in ("==", "!="):
                 raise bad(f"{name} is a word: compare it with == or !=")
