@@ -254,3 +254,16 @@ def test_cli_duplicate_in_user_folder_exit_2(tmp_path):
     result = runner.invoke(app, ["catalog", "list", "--catalog", str(tmp_path)])
     assert result.exit_code == 2 and "duplicate catalogue id" in result.output
     assert len(result.output.strip().splitlines()) == 1
+
+
+def test_environment_folder_that_is_not_one(tmp_path, monkeypatch):
+    monkeypatch.setenv(ENV, str(tmp_path / "missing"))
+    result = runner.invoke(app, ["catalog", "list"])
+    assert result.exit_code == 2 and result.output.startswith(f"error: {ENV}: not a folder")
+
+
+def test_a_link_loop_in_a_user_folder_is_one_error(tmp_path):
+    motor_file(tmp_path, "m")
+    (tmp_path / "motor" / "loop").symlink_to(tmp_path, target_is_directory=True)
+    with pytest.raises(ModelError, match="nest more than"):
+        load_catalogue([tmp_path])

@@ -191,10 +191,18 @@ def load_catalogue(folders: Sequence[str | os.PathLike[str]] = (), *, environmen
     return Catalogue(entries)
 
 
-def _walk(folder: Traversable) -> Iterator[Traversable]:
+MAX_DEPTH = 8
+"""Deepest sub-folder read in a catalogue folder (the shipped one uses 1): a deeper tree is a mistake, or
+a symbolic link looping back."""
+
+
+def _walk(folder: Traversable, depth: int = 0) -> Iterator[Traversable]:
     for item in sorted(folder.iterdir(), key=lambda t: t.name):
         if item.is_dir():
-            yield from _walk(item)
+            if depth >= MAX_DEPTH:
+                raise ModelError(f"catalogue folders nest more than {MAX_DEPTH} levels deep (a link loop?)",
+                                 source=str(item))
+            yield from _walk(item, depth + 1)
         elif item.name.endswith(".toml"):
             yield item
 
