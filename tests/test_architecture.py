@@ -31,7 +31,7 @@ FOUNDATION = {"errors", "budget", "progress"}
 # plots: figures of result objects, imported only lazily by a ``plot`` method (or by tasks/cli).
 # io (model file, atomic writes, CSV) needs only description: the stages from simulation up may use it,
 # their results write themselves through it (TimeSeries.to_csv → io.csv, save_figure → io.atomic).
-_CORE = {"foundation", "description", "lti", "mechanics", "motion", "servo"}
+_CORE = {"foundation", "description", "catalogue", "lti", "mechanics", "motion", "servo"}
 _ANALYSES = _CORE | {"io"}
 ALLOWED: dict[str, set[str]] = {
     "foundation": set(),

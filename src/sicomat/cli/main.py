@@ -13,6 +13,10 @@ from .progress import progress_bar
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, cls=OneLineErrors,
                   help="SICOMAT: simulation and control analysis of machine-tool feed axes.")
 
+from .catalog import catalog_app  # noqa: E402  (the command group lives in its module)
+
+app.add_typer(catalog_app, name="catalog")
+
 ModelArgument = typer.Argument(..., help="Model file (TOML).", dir_okay=False)
 
 
