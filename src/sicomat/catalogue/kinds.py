@@ -19,6 +19,7 @@ from pydantic import BeforeValidator, Field, model_validator
 
 from ..description.base import Spec
 from ..description.units import UNITS, Unit, parse_quantity
+from .drivetrain import STEEL_DENSITY, STEEL_SHEAR_MODULUS, STEEL_YOUNGS_MODULUS
 
 __all__ = ["KINDS", "Dimension", "unit_of", "parameter_names", "Provenance", "Datasheet", "Typical",
            "MotorParameters", "LinearMotorParameters", "CouplingParameters", "GearboxParameters",
@@ -103,9 +104,9 @@ CurrentBasis = Literal["rms", "peak"]
 ResistanceBasis = Literal["phase", "line-to-line"]
 EmfBasis = Literal["line-to-line-rms", "line-to-line-peak"]
 
-STEEL = {"density": 7850.0, "youngs_modulus": 2.1e11, "shear_modulus": 8.1e10}
-"""Defaults of a ball screw's material: carbon/bearing steel, ρ = 7850 kg/m³, E = 210 GPa, G = 81 GPa
-(the values ISO 3408-5 and the screw makers' technical sections use; alloy steels vary by ±3 %)."""
+STEEL = {"density": STEEL_DENSITY, "youngs_modulus": STEEL_YOUNGS_MODULUS, "shear_modulus": STEEL_SHEAR_MODULUS}
+"""Defaults of a ball screw's material: the drive-train rules' steel (:mod:`sicomat.catalogue.drivetrain`:
+ρ = 7850 kg/m³, E = 206 GPa, G = 79 GPa, the screw makers' values; alloy steels vary by ±3 %)."""
 
 
 def _needs_basis(spec: Spec, pairs: tuple[tuple[str, str], ...]) -> None:
