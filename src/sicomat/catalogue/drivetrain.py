@@ -101,6 +101,19 @@ def translational_to_torsional(stiffness: float, radius: float) -> float:
     return stiffness * radius**2
 
 
+def _shaft_ea(root_diameter: float, length: float, position: float, mounting: str,
+              youngs_modulus: float) -> float:
+    """``E·A`` of the screw shaft (``A`` from the root diameter), after checking the mounting, the sizes and
+    that the nut lies on the shaft (``0 ≤ position ≤ length``)."""
+    _check_mounting(mounting)
+    _check_positive("root_diameter", root_diameter)
+    _check_positive("length", length)
+    if not 0.0 <= position <= length:
+        raise ModelError(f"nut position {position!r} m is outside the screw length [0, {length!r}] m",
+                         path="position", value=position)
+    return youngs_modulus * math.pi * root_diameter**2 / 4.0
+
+
 # --------------------------------------------------------------------------- ball screw
 def shaft_axial_stiffness(root_diameter: float, length: float, position: float, mounting: str, *,
                           youngs_modulus: float = STEEL_YOUNGS_MODULUS) -> float:
@@ -120,13 +133,7 @@ def shaft_axial_stiffness(root_diameter: float, length: float, position: float, 
     Assumptions: uniform shaft of the root diameter, no pretension loss, the bearings rigid here (see
     :func:`screw_axial_stiffness` for them).
     """
-    _check_mounting(mounting)
-    _check_positive("root_diameter", root_diameter)
-    _check_positive("length", length)
-    if not 0.0 <= position <= length:
-        raise ModelError(f"nut position {position!r} m is outside the screw length [0, {length!r}] m",
-                         path="position", value=position)
-    ea = youngs_modulus * math.pi * root_diameter**2 / 4.0
+    ea = _shaft_ea(root_diameter, length, position, mounting, youngs_modulus)
     if mounting == "fixed-fixed":
         a, b = position, length - position
         return math.inf if a == 0.0 or b == 0.0 else ea * length / (a * b)
@@ -155,13 +162,7 @@ def screw_axial_stiffness(root_diameter: float, length: float, position: float, 
     if mounting != "fixed-fixed":
         shaft = shaft_axial_stiffness(root_diameter, length, position, mounting, youngs_modulus=youngs_modulus)
         return series_stiffness(shaft, nut_stiffness, bearing_stiffness)
-    _check_mounting(mounting)
-    _check_positive("root_diameter", root_diameter)
-    _check_positive("length", length)
-    if not 0.0 <= position <= length:
-        raise ModelError(f"nut position {position!r} m is outside the screw length [0, {length!r}] m",
-                         path="position", value=position)
-    ea = youngs_modulus * math.pi * root_diameter**2 / 4.0
+    ea = _shaft_ea(root_diameter, length, position, mounting, youngs_modulus)
     paths = [series_stiffness(math.inf if seg == 0.0 else ea / seg, bearing_stiffness)
              for seg in (position, length - position)]
     return series_stiffness(nut_stiffness, parallel_stiffness(*paths))
