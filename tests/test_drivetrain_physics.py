@@ -234,8 +234,8 @@ def test_unit_conversions_of_the_motor_conventions() -> None:
     assert mc.torque_constant_rms(1.0, "rms") == 1.0
     assert mc.back_emf_line_rms(1.0, "phase-peak") == pytest.approx(1.224744871, rel=REL)  # √3/√2
     assert mc.back_emf_line_rms(1.0, "phase-rms") == pytest.approx(1.732050808, rel=REL)   # √3
-    assert mc.back_emf_line_rms(1.0, "line-peak") == pytest.approx(0.7071067812, rel=REL)  # 1/√2
-    assert mc.phase_resistance(2.0, "line") == 1.0
+    assert mc.back_emf_line_rms(1.0, "line-to-line-peak") == pytest.approx(0.7071067812, rel=REL)  # 1/√2
+    assert mc.phase_resistance(2.0, "line-to-line") == 1.0
     # 100 V/1000 min⁻¹ = 100·60/(2π·1000) = 0.9549296586 V·s/rad
     assert mc.per_krpm_to_per_rad_s(100.0) == pytest.approx(0.9549296586, rel=REL)
     assert mc.expected_torque_constant(0.9549296586) == pytest.approx(1.653986686, rel=REL)   # √3 ×
@@ -261,7 +261,7 @@ def test_published_table_motor() -> None:
     # its Table: 310 V DC, 4600 rpm, 2.2 N·m, stall current 4.52 A, Ke 51 V/krpm, Kt 0.49 N·m/A,
     # ph/ph resistance 3.07 Ω, J = 1.8 kg·cm²; the table does not say rms or peak).
     ke = mc.per_krpm_to_per_rad_s(51.0)          # 0.4870141259 V·s/rad
-    r_ph = mc.phase_resistance(3.07, "line")     # 1.535 Ω
+    r_ph = mc.phase_resistance(3.07, "line-to-line")     # 1.535 Ω
     warnings = mc.datasheet_warnings(torque_constant=0.49, back_emf_constant=ke, stall_current=4.52,
                                      stall_torque=2.2, phase_resistance=r_ph, rotor_inertia=1.8e-4)
     # I0·kT = 4.52·0.49 = 2.2148 against M0 = 2.2: ratio 0.9933, inside ±10 % → no "M0" warning.

@@ -5,7 +5,8 @@ The kind strings (:data:`KINDS`' keys) and the ball-screw axis's parameter names
 conventions that differ between vendors are explicit fields beside the value they qualify, required
 whenever that value is given (never guessed): ``torque_constant_basis`` (per A ``rms`` or ``peak``),
 ``resistance_basis`` (``phase`` or ``line-to-line``), ``back_emf_basis`` (``line-to-line-rms``, the
-usual datasheet form, or ``line-to-line-peak``). ``docs/catalogue.md`` lists every field.
+usual datasheet form, ``line-to-line-peak``, ``phase-rms`` or ``phase-peak``). The same words are the
+conventions of :mod:`sicomat.catalogue.motor_checks`. ``docs/catalogue.md`` lists every field.
 """
 
 from __future__ import annotations
@@ -102,7 +103,7 @@ Lead = Annotated[float, BeforeValidator(_parse_lead), Field(gt=0), Dimension(UNI
 
 CurrentBasis = Literal["rms", "peak"]
 ResistanceBasis = Literal["phase", "line-to-line"]
-EmfBasis = Literal["line-to-line-rms", "line-to-line-peak"]
+EmfBasis = Literal["line-to-line-rms", "line-to-line-peak", "phase-rms", "phase-peak"]
 
 STEEL = {"density": STEEL_DENSITY, "youngs_modulus": STEEL_YOUNGS_MODULUS, "shear_modulus": STEEL_SHEAR_MODULUS}
 """Defaults of a ball screw's material: the drive-train rules' steel (:mod:`sicomat.catalogue.drivetrain`:

@@ -9,9 +9,12 @@ current, back-EMF constant ``kE`` in V **line-to-line rms** per rad/s of the sha
 from __future__ import annotations
 
 import math
+import typing
 from dataclasses import dataclass
 
 from sicomat.errors import ModelError
+
+from .kinds import CurrentBasis, EmfBasis, ResistanceBasis
 
 __all__ = [
     "DATASHEET_TOLERANCE",
@@ -28,9 +31,10 @@ __all__ = [
     "torque_constant_rms",
 ]
 
-KT_PER = ("rms", "peak")
-KE_PER = ("line-rms", "line-peak", "phase-rms", "phase-peak")
-RESISTANCE_PER = ("phase", "line")
+# the datasheet conventions: the catalogue schema's words (one vocabulary for entries and checks)
+KT_PER: tuple[str, ...] = typing.get_args(CurrentBasis)
+KE_PER: tuple[str, ...] = typing.get_args(EmfBasis)
+RESISTANCE_PER: tuple[str, ...] = typing.get_args(ResistanceBasis)
 DATASHEET_TOLERANCE = 0.10
 """Relative tolerance of the checks: datasheet values carry ±10 % (Beckhoff AM8000 and Emerson
 PACMotion manuals, "Definitions": "The data can have a tolerance of +/- 10 %")."""
@@ -51,7 +55,7 @@ def torque_constant_rms(value: float, per: str = "rms") -> float:
     return value * math.sqrt(2.0) if per == "peak" else value
 
 
-def back_emf_line_rms(value: float, per: str = "line-rms") -> float:
+def back_emf_line_rms(value: float, per: str = "line-to-line-rms") -> float:
     """kE line-to-line rms (V·s/rad) from a datasheet's kE in V·s/rad of the given convention.
 
     Star connection, sinusoidal EMF: ``E_ll = √3·E_ph`` and ``E_rms = E_pk/√2``. Convert V/1000 min⁻¹ first
@@ -63,12 +67,12 @@ def back_emf_line_rms(value: float, per: str = "line-rms") -> float:
 
 
 def phase_resistance(value: float, per: str = "phase") -> float:
-    """Resistance per phase of the star equivalent from a datasheet's value (``"phase"`` or ``"line"``:
+    """Resistance per phase of the star equivalent from a datasheet's value (``"phase"`` or ``"line-to-line"``:
     terminal to terminal). Star: two phases between terminals, ``R_ph = R_ll/2``; a delta winding measured
     terminal to terminal gives the same star equivalent ``R_ll/2``.
     """
     _choice("resistance_per", per, RESISTANCE_PER)
-    return value / 2.0 if per == "line" else value
+    return value / 2.0 if per == "line-to-line" else value
 
 
 def per_krpm_to_per_rad_s(value: float) -> float:
