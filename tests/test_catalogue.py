@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from sicomat.catalogue.kinds import KINDS, BallScrewParameters, MotorParameters, unit_of
+from sicomat.description.parts import KINDS, BallScrewParameters, MotorParameters, unit_of
 from sicomat.catalogue.store import ENV, load_catalogue, parse_condition, shipped_folder
 from sicomat.cli.main import app
 from sicomat.errors import ModelError

@@ -13,8 +13,8 @@ import math
 
 import pytest
 
-from sicomat.catalogue import drivetrain as dt
-from sicomat.catalogue import motor_checks as mc
+from sicomat.description import drivetrain as dt
+from sicomat.description import motor_checks as mc
 from sicomat.errors import ModelError
 
 REL = 1e-9

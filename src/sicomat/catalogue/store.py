@@ -24,7 +24,7 @@ from pydantic import TypeAdapter, ValidationError
 from ..description.base import Spec
 from ..description.units import parse_quantity
 from ..errors import ModelError
-from .kinds import KINDS, Provenance, unit_of
+from ..description.parts import KINDS, Provenance, unit_of
 
 __all__ = ["Entry", "Catalogue", "load_catalogue", "shipped_folder", "Condition", "parse_condition", "ENV"]
 

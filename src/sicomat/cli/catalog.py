@@ -73,7 +73,7 @@ def _print_show(payload: dict[str, Any]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from ..catalogue.kinds import unit_of
+    from ..description.parts import unit_of
     from .layout import print_table
 
     table = Table(title=f"{payload['id']} ({payload['kind']}): {payload['description']}")

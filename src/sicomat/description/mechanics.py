@@ -17,7 +17,7 @@ from .units import UNITS, parse_quantity
 
 __all__ = [
     "GROUND", "Body", "Coupling", "Friction", "Actuator", "Sensor",
-    "LumpedSpec", "resolve_stretch",
+    "LumpedSpec", "resolve_stretch", "geared_kind",
 ]
 
 GROUND = "ground"
@@ -90,10 +90,24 @@ class Friction(_Link):
 
 
 class Actuator(Spec):
-    """A force (on a mass) or torque (on an inertia), with its reaction on another body if given."""
+    """A force (on a mass) or torque (on an inertia), with its reaction on another body if given.
+
+    ``ratio`` and ``stretch`` describe a motor geared rigidly to the body it drives: the motor's own
+    coordinate is ``ratio * q[body]`` and is a rotation or a translation (``stretch``, default the
+    body's kind), so a rotary motor can drive a translating body through a rigid screw
+    (``ratio = 2*pi/p`` rad/m, the reciprocal of the lead); the body then receives ``ratio * u``.
+    """
 
     body: Name
     reaction: Name | None = None
+    ratio: float = 1.0
+    stretch: Kind | None = None
+
+    @model_validator(mode="after")
+    def _nonzero(self) -> "Actuator":
+        if self.ratio == 0:
+            raise fail("the ratio must be non-zero", "ratio", self.ratio)
+        return self
 
 
 class Sensor(Spec):
@@ -101,6 +115,9 @@ class Sensor(Spec):
 
     ``resolution`` (m for a mass, rad for an inertia; or ``counts_per_revolution`` for a rotary
     encoder) is the quantization step of a position sensor, applied where the CNC samples it.
+    ``ratio`` and ``stretch`` (as for an :class:`Actuator`) describe a sensor geared rigidly to its
+    body: it reads ``ratio * q[body]``, a rotation or a translation (default the body's kind), e.g. a
+    motor encoder on a translating body that lumps the whole rigid axis.
     """
 
     body: Name
@@ -108,9 +125,13 @@ class Sensor(Spec):
     kind: Literal["position", "velocity"] = "position"
     resolution: float | None = Field(default=None, gt=0)
     counts_per_revolution: int | None = Field(default=None, gt=0)
+    ratio: float = 1.0
+    stretch: Kind | None = None
 
     @model_validator(mode="after")
     def _one_resolution(self) -> "Sensor":
+        if self.ratio == 0:
+            raise fail("the ratio must be non-zero", "ratio", self.ratio)
         if self.resolution is not None and self.counts_per_revolution is not None:
             raise fail("give either 'resolution' or 'counts_per_revolution', not both", "counts_per_revolution",
                        self.counts_per_revolution)
@@ -193,9 +214,10 @@ class LumpedSpec(Spec):
                 continue
             data[table] = {name: _parse_link(link, kinds, fields, f"{table}.{name}")
                            for name, link in links.items()}
-        sensors = data.get("sensors")
-        if isinstance(sensors, dict):
-            data["sensors"] = {name: _parse_resolution(s, kinds, f"sensors.{name}") for name, s in sensors.items()}
+        for table in ("actuators", "sensors"):
+            items = data.get(table)
+            if isinstance(items, dict):
+                data[table] = {name: _parse_geared(item, kinds, f"{table}.{name}") for name, item in items.items()}
         return data
 
     @model_validator(mode="after")
@@ -320,13 +342,31 @@ def _parse_link(link: Any, kinds: dict[str, str], fields: dict[str, dict[str, st
     return out
 
 
-def _parse_resolution(sensor: Any, kinds: dict[str, str], where: str) -> Any:
-    if not isinstance(sensor, dict) or sensor.get("resolution") is None:
-        return sensor
-    # an unknown body is reported by the topology check; parse the resolution as a length then
-    body = sensor.get("body")
-    unit = "angle" if isinstance(body, str) and kinds.get(body) == "rotational" else "length"
-    try:
-        return {**sensor, "resolution": parse_quantity(sensor["resolution"], UNITS[unit])}
-    except ValueError as exc:
-        raise fail(str(exc), f"{where}.resolution", sensor["resolution"]) from None
+def geared_kind(item: Any, kinds: Mapping[str, str]) -> Kind:
+    """The kind of an actuator's or sensor's own coordinate: its ``stretch``, else its body's kind."""
+    stretch = getattr(item, "stretch", None) if not isinstance(item, dict) else item.get("stretch")
+    if stretch in ("translational", "rotational"):
+        return stretch
+    body = getattr(item, "body", None) if not isinstance(item, dict) else item.get("body")
+    return "rotational" if isinstance(body, str) and kinds.get(body) == "rotational" else "translational"
+
+
+def _parse_geared(item: Any, kinds: dict[str, str], where: str) -> Any:
+    """Parse an actuator's or sensor's ``ratio`` (motor coordinate per body coordinate) and a sensor's
+    ``resolution`` (in its own coordinate) with their units; an unknown body is reported by the
+    topology check (a translational body is assumed meanwhile)."""
+    if not isinstance(item, dict):
+        return item
+    out = dict(item)
+    own = geared_kind(item, kinds)
+    body = item.get("body")
+    body_kind = kinds.get(body, "translational") if isinstance(body, str) else "translational"
+    for key, unit in (("ratio", _ratio_unit(body_kind, own) if own != body_kind else "dimensionless"),
+                      ("resolution", "angle" if own == "rotational" else "length")):
+        if out.get(key) is not None:
+            try:
+                out[key] = parse_quantity(out[key], UNITS[unit])
+            except ValueError as exc:
+                raise fail(str(exc), f"{where}.{key}", out[key]) from None
+    return out
+

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Literal, Sequence
 
 import numpy as np
 
-from ..description.mechanics import GROUND, LumpedSpec, resolve_stretch
+from ..description.mechanics import GROUND, LumpedSpec, geared_kind, resolve_stretch
 from ..errors import ModelError
 from .conditioning import check_numeric_range, check_resolvable
 from .statespace import MassFactor
@@ -329,17 +329,17 @@ def build_mechanics(spec: "MechanicsKind") -> Mechanics:
     actuators = []
     for name, act in lumped.actuators.items():
         vector = np.zeros(n)
-        vector[index[act.body]] = 1.0
+        vector[index[act.body]] = act.ratio
         if act.reaction is not None:
-            vector[index[act.reaction]] = -1.0
-        actuators.append(Load(name, _frozen(vector), dofs[index[act.body]].kind))
+            vector[index[act.reaction]] = -act.ratio
+        actuators.append(Load(name, _frozen(vector), geared_kind(act, kinds)))
     sensors = []
     for name, sensor in lumped.sensors.items():
         vector = np.zeros(n)
-        vector[index[sensor.body]] = 1.0
+        vector[index[sensor.body]] = sensor.ratio
         if sensor.relative_to is not None:
-            vector[index[sensor.relative_to]] -= 1.0
-        sensors.append(Measurement(name, _frozen(vector), sensor.kind, dofs[index[sensor.body]].kind,
+            vector[index[sensor.relative_to]] -= sensor.ratio
+        sensors.append(Measurement(name, _frozen(vector), sensor.kind, geared_kind(sensor, kinds),
                                    step=sensor.step))
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
-from sicomat.errors import ModelError
+from ..errors import ModelError
 
 __all__ = [
     "MOUNTINGS",

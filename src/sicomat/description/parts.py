@@ -6,7 +6,7 @@ conventions that differ between vendors are explicit fields beside the value the
 whenever that value is given (never guessed): ``torque_constant_basis`` (per A ``rms`` or ``peak``),
 ``resistance_basis`` (``phase`` or ``line-to-line``), ``back_emf_basis`` (``line-to-line-rms``, the
 usual datasheet form, ``line-to-line-peak``, ``phase-rms`` or ``phase-peak``). The same words are the
-conventions of :mod:`sicomat.catalogue.motor_checks`. ``docs/catalogue.md`` lists every field.
+conventions of :mod:`sicomat.description.motor_checks`. ``docs/catalogue.md`` lists every field.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import BeforeValidator, Field, model_validator
 
-from ..description.base import Spec
-from ..description.units import UNITS, Unit, parse_quantity
+from .base import Spec
+from .units import UNITS, Unit, parse_quantity
 from .drivetrain import STEEL_DENSITY, STEEL_SHEAR_MODULUS, STEEL_YOUNGS_MODULUS
 
 __all__ = ["KINDS", "Dimension", "unit_of", "parameter_names", "Provenance", "Datasheet", "Typical",
@@ -106,7 +106,7 @@ ResistanceBasis = Literal["phase", "line-to-line"]
 EmfBasis = Literal["line-to-line-rms", "line-to-line-peak", "phase-rms", "phase-peak"]
 
 STEEL = {"density": STEEL_DENSITY, "youngs_modulus": STEEL_YOUNGS_MODULUS, "shear_modulus": STEEL_SHEAR_MODULUS}
-"""Defaults of a ball screw's material: the drive-train rules' steel (:mod:`sicomat.catalogue.drivetrain`:
+"""Defaults of a ball screw's material: the drive-train rules' steel (:mod:`sicomat.description.drivetrain`:
 ρ = 7850 kg/m³, E = 206 GPa, G = 79 GPa, the screw makers' values; alloy steels vary by ±3 %)."""
 
 

@@ -12,9 +12,9 @@ import math
 import typing
 from dataclasses import dataclass
 
-from sicomat.errors import ModelError
+from ..errors import ModelError
 
-from .kinds import CurrentBasis, EmfBasis, ResistanceBasis
+from .parts import CurrentBasis, EmfBasis, ResistanceBasis
 
 __all__ = [
     "DATASHEET_TOLERANCE",
