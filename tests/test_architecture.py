@@ -37,7 +37,7 @@ ALLOWED: dict[str, set[str]] = {
     "foundation": set(),
     "description": {"foundation"},
     "catalogue": {"foundation", "description"},
-    "io": {"foundation", "description"},
+    "io": {"foundation", "description", "catalogue"},
     "motion": {"foundation", "description"},
     "lti": {"foundation"},
     "mechanics": {"foundation", "description", "lti"},
@@ -328,6 +328,7 @@ LONG_MODULES: dict[str, str] = {
     "sicomat.tuning.frequency": "the frequency approach of the tuning (rigid closed form, then the complete model)",
     "sicomat.servo.loop": "the servo loop: resolved from the axis description and lowered to a hybrid program",
     "sicomat.cli.main": "the CLI's commands, each delegating to the library",
+    "sicomat.description.chain": "the lowering of a drive chain of parts to lumped bodies and springs (one walk, then the detail)",
 }
 
 

@@ -3,15 +3,16 @@ controller and trajectory, and the cross-checks between an axis's blocks."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from .base import Name, Spec, fail
 from .registry import MechanicsKind, spec_union
 from .motion import InterpolatorSpec, SetpointSpec
 from .servo import ControllerSpec, DriveSpec
-from . import mechanics as _mechanics, shorthands as _shorthands  # noqa: F401  (register their types)
+from . import mechanics as _mechanics, shorthands as _shorthands, components as _components  # noqa: F401  (register their types)
+from .components import ComponentsSpec, drive_defaults
 from ..errors import ModelError
 
 __all__ = ["MechanicsSpec", "Axis", "Machine"]
@@ -21,8 +22,8 @@ if TYPE_CHECKING:  # a type checker sees the protocol, pydantic the discriminate
     MechanicsSpec = MechanicsKind
 else:
     MechanicsSpec = spec_union("mechanics")
-"""Any registered mechanical structure, chosen by ``type`` (lumped, chain, belt-rack): its classes are
-registered in ``mechanics.py`` and ``shorthands.py``; a module with a new type is imported above."""
+"""Any registered mechanical structure, chosen by ``type`` (lumped, chain, belt-rack, components): its classes
+are registered in ``mechanics.py``, ``shorthands.py`` and ``components.py``; a module with a new type is imported above."""
 
 
 # --------------------------------------------------------------------------- machine
@@ -39,6 +40,21 @@ class Axis(Spec):
     controller: ControllerSpec | None = None
     trajectory: SetpointSpec | None = None
     tool: Name | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _drive_from_motor(cls, data: Any) -> Any:
+        """A drive-chain axis's drive takes the motor's constants it does not give (docs/components.md)."""
+        if not (isinstance(data, dict) and isinstance(data.get("drive"), dict)):
+            return data
+        mech = data.get("mechanics")
+        if not (isinstance(mech, dict) and mech.get("type") == "components"):
+            return data
+        try:
+            spec = ComponentsSpec.model_validate(mech)
+        except ValidationError:
+            return data          # the mechanics field reports it, located
+        return {**data, "drive": {**drive_defaults(spec), **data["drive"]}}
 
     @model_validator(mode="after")
     def _references(self) -> "Axis":

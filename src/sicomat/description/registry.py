@@ -16,7 +16,7 @@ a profile is :func:`sicomat.motion.setpoints.profile_from_spec`, which sits besi
 Examples
 --------
 >>> registered_types("mechanics")
-('lumped', 'chain', 'belt-rack')
+('lumped', 'chain', 'belt-rack', 'components')
 >>> spec_class("setpoint", "s-curve").__name__
 'SCurveSetpoint'
 """

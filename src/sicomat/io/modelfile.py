@@ -3,15 +3,21 @@
 from __future__ import annotations
 
 import os
+import re
 import tomllib
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from pydantic import ValidationError
 
 from ..errors import ModelError
 from ..description.machine import Machine
 from ..description.registry import union_tags
+from ..description.components import PART_CLASSES
+from ..catalogue.resolve import resolve_parts
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..catalogue.store import Catalogue
 
 __all__ = ["load_model", "machine_from_dict", "save_model", "model_text", "dump_model", "parse_override",
            "with_overrides"]
@@ -19,7 +25,8 @@ __all__ = ["load_model", "machine_from_dict", "save_model", "model_text", "dump_
 _UNION_TAGS = union_tags()  # key of a block table → its registered types (description/registry.py)
 
 
-def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machine:
+def load_model(path: str | os.PathLike, overrides: Iterable[str] = (), *,
+               catalogue: "Catalogue | None" = None) -> Machine:
     """Read and validate a model file, then apply ``KEY=VALUE`` overrides.
 
     Parameters
@@ -39,12 +46,16 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
     source = str(path)
     text = _read_text(path)
     data = _read_toml(text, source)
-    machine = machine_from_dict(data, source=source)
+    _check_depth(data, source)
+    data = resolve_parts(data, catalogue, source=source)
+    machine = _validate(data, source)
     settings = [(item, *parse_override(item)) for item in overrides]
     if not settings:
         return machine
-    for item, key, value in settings:
-        data = _set_path(data, key, value, source=f"--set {item}")
+    data = _apply_settings(data, [(key, value, f"--set {item}") for item, key, value in settings])
+    swapped = [item for item, key, _ in settings if _PART_ID.match(key)]
+    if swapped:   # a part given another catalogue id takes that entry's values
+        data = resolve_parts(data, catalogue, source=f"--set {swapped[0]}")
     # validated together, so that settings that only make sense together can come in any order
     # (velocity_delay = 0 with velocity_loop = "continuous"); an error names the override closest to it
     try:
@@ -56,9 +67,19 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = ()) -> Machin
         raise _translate(exc, f"--set {closest[0]}") from None
 
 
-def machine_from_dict(data: Mapping[str, Any], source: str | None = None) -> Machine:
-    """Validate a plain mapping (as read from TOML) into a :class:`Machine`."""
+def machine_from_dict(data: Mapping[str, Any], source: str | None = None, *,
+                      catalogue: "Catalogue | None" = None) -> Machine:
+    """Validate a plain mapping (as read from TOML) into a :class:`Machine`.
+
+    Parts of a ``components`` mechanics that name a catalogue ``id`` get the entry's values that the
+    data does not give (:func:`sicomat.catalogue.resolve.resolve_parts`), looked up in ``catalogue``
+    (default: the shipped catalogue and the folders of ``SICOMAT_CATALOG``).
+    """
     _check_depth(data, source)
+    return _validate(resolve_parts(data, catalogue, source=source), source)
+
+
+def _validate(data: Mapping[str, Any], source: str | None) -> Machine:
     try:
         return Machine.model_validate(data)
     except ValidationError as exc:
@@ -75,10 +96,39 @@ def with_overrides(machine: Machine, settings: Mapping[str, Any]) -> Machine:
     >>> with_overrides(m, {"axes.X.mechanics.masses.1": "3 kg"}).axes["X"].mechanics.masses
     [1.0, 3.0]
     """
-    data = dump_data(machine)
-    for key, value in settings.items():
-        data = _set_path(data, key, value, source=f"--set {key}")
+    data = _apply_settings(dump_data(machine), [(key, value, f"--set {key}") for key, value in settings.items()])
     return machine_from_dict(data, source="override")
+
+
+_PART_ID = re.compile(r"^axes\.[^.]+\.mechanics\.parts\.\d+\.id$")
+
+
+def _apply_settings(data: Mapping[str, Any], settings: list[tuple[str, Any, str]]) -> dict[str, Any]:
+    """``data`` with each ``(key, value, source)`` set, catalogue-id settings first: a part given a new
+    ``id`` keeps only its ``kind``, ``name`` and the id (the new entry's values then fill it), so the
+    other settings of that part apply on top of the new entry."""
+    out = dict(data)
+    ordered = sorted(settings, key=lambda s: not _PART_ID.match(s[0]))
+    for key, value, source in ordered:
+        if _PART_ID.match(key):
+            path = key.rsplit(".", 1)[0]
+            part = _get_path(out, path)
+            if isinstance(part, dict):
+                out = _set_path(out, path, {k: v for k, v in part.items() if k in ("kind", "name")}, source)
+        out = _set_path(out, key, value, source)
+    return out
+
+
+def _get_path(data: Any, key: str) -> Any:
+    node = data
+    for part in key.split("."):
+        if isinstance(node, dict):
+            node = node.get(part)
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            return None
+    return node
 
 
 def parse_override(item: str) -> tuple[str, Any]:
@@ -242,7 +292,8 @@ def model_text(machine: Machine, *, based_on: str | os.PathLike | None = None, h
     new = dump_data(machine)
     if based_on is not None:
         original = _read_text(based_on)
-        old = dump_data(machine_from_dict(_read_toml(original, str(based_on)), source=str(based_on)))
+        raw = _read_toml(original, str(based_on))
+        old = _as_written(dump_data(machine_from_dict(raw, source=str(based_on))), raw)
         for keep_units in (True, False):
             text = edited_model_text(original, old, new, header=header, keep_units=keep_units)
             if _reads_as(text, new):
@@ -250,6 +301,21 @@ def model_text(machine: Machine, *, based_on: str | os.PathLike | None = None, h
         header = ((header + "\n") if header else "") + \
             f"Written as plain SI numbers: the comments and units of {based_on} could not be kept."
     return (comment_lines(header) if header else "") + dump_model(machine)
+
+
+def _as_written(old: dict[str, Any], raw: Mapping[str, Any]) -> dict[str, Any]:
+    """``old`` with each catalogue part cut down to the keys its file wrote: the entry's values are then
+    written into the saved file (Save Model records them, so it loads unchanged when the catalogue
+    changes)."""
+    for axis, spec in (raw.get("axes") or {}).items():
+        parts = (spec.get("mechanics") or {}).get("parts") if isinstance(spec, dict) else None
+        if not isinstance(parts, list):
+            continue
+        dumped = old["axes"][axis]["mechanics"]["parts"]
+        for i, part in enumerate(parts):
+            if isinstance(part, dict) and "id" in part and i < len(dumped):
+                dumped[i] = {k: v for k, v in dumped[i].items() if k in part}
+    return old
 
 
 def _reads_as(text: str, data: Mapping[str, Any]) -> bool:
@@ -288,7 +354,8 @@ def _translate(exc: ValidationError, source: str | None) -> ModelError:
     errors = exc.errors()
     first = errors[0]
     loc = [str(p) for p in first["loc"]]
-    loc = [p for i, p in enumerate(loc) if not (i > 0 and p in _UNION_TAGS.get(loc[i - 1], ()))]
+    loc = [p for i, p in enumerate(loc) if not (i > 0 and p in _UNION_TAGS.get(loc[i - 1], ()))
+           and not (i > 1 and loc[i - 2] == "parts" and p in PART_CLASSES)]   # a part's kind tag
     ctx = first.get("ctx") or {}
     kind = first["type"]
     value, has_value = first.get("input"), True
@@ -304,6 +371,12 @@ def _translate(exc: ValidationError, source: str | None) -> ModelError:
         message = "unknown key (not part of the model-file schema; check its spelling)"
     elif kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
         message = "expected a value " + first["msg"].removeprefix("Input should be ")
+    elif kind in ("union_tag_invalid", "union_tag_not_found") and len(loc) > 1 and loc[-2] == "parts":
+        loc.append("kind")
+        if kind == "union_tag_invalid":
+            message, value = f"unknown part kind; expected one of {ctx.get('expected_tags')}", ctx.get("tag", value)
+        else:
+            message, has_value = f"missing key 'kind'; expected one of {', '.join(PART_CLASSES)}", False
     elif kind == "union_tag_invalid":
         message = f"unknown type; expected one of {ctx.get('expected_tags')}"
         value = ctx.get("tag", value)

@@ -1,0 +1,73 @@
+"""Catalogue ids in model files: fill each ``components`` part that names an ``id`` with the entry's values
+the file does not give (the file's own values win: they are overrides, or the values a saved model
+recorded). Runs on the plain data, before validation (:func:`sicomat.io.modelfile.machine_from_dict`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping
+
+from ..errors import ModelError
+from .store import Catalogue, load_catalogue
+
+__all__ = ["resolve_parts", "uses_catalogue"]
+
+
+def _component_parts(data: Mapping[str, Any]):
+    axes = data.get("axes")
+    if not isinstance(axes, dict):
+        return
+    for axis, spec in axes.items():
+        mech = spec.get("mechanics") if isinstance(spec, dict) else None
+        if not (isinstance(mech, dict) and mech.get("type") == "components" and isinstance(mech.get("parts"), list)):
+            continue
+        for i, part in enumerate(mech["parts"]):
+            if isinstance(part, dict) and "id" in part:
+                yield axis, i, part
+
+
+def uses_catalogue(data: Mapping[str, Any]) -> bool:
+    """Whether any ``components`` part of ``data`` names a catalogue ``id``."""
+    return next(_component_parts(data), None) is not None
+
+
+def resolve_parts(data: Mapping[str, Any], catalogue: Catalogue | Callable[[], Catalogue] | None = None, *,
+                  source: str | None = None) -> dict[str, Any]:
+    """A copy of ``data`` whose catalogue parts carry the entry's values under the file's.
+
+    Parameters
+    ----------
+    data : mapping
+        A model file as read (plain TOML data).
+    catalogue : Catalogue or callable, optional
+        Where ids are looked up (default: the shipped catalogue and the folders of ``SICOMAT_CATALOG``);
+        a callable is called only if some part names an id.
+
+    Raises
+    ------
+    ModelError
+        An unknown id (the closest ids named), an id of another kind than the part's, or an id that is not
+        a string; located at ``axes.<axis>.mechanics.parts.<i>.id``.
+    """
+    found = list(_component_parts(data))
+    if not found:
+        return dict(data)
+    if catalogue is None:
+        catalogue = load_catalogue
+    cat = catalogue() if callable(catalogue) else catalogue
+    out = dict(data)
+    out["axes"] = dict(out["axes"])
+    for axis, i, part in found:
+        where = f"axes.{axis}.mechanics.parts.{i}.id"
+        ident, kind = part["id"], part.get("kind")
+        if not isinstance(ident, str):
+            raise ModelError("expected a catalogue id (a string)", source=source, path=where, value=ident)
+        try:
+            entry = cat.get(ident, kind if isinstance(kind, str) else None)
+        except ModelError as exc:
+            raise ModelError(exc.message, source=source, path=where, value=ident) from None
+        axis_data = out["axes"][axis] = dict(out["axes"][axis])
+        mech = axis_data["mechanics"] = dict(axis_data["mechanics"])
+        parts = mech["parts"] = list(mech["parts"])
+        parts[i] = {"kind": entry.kind, **entry.parameter_values(), **part}
+    return out
