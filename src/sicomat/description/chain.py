@@ -11,6 +11,8 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
+import numpy as np
+
 from . import drivetrain as dt
 from .base import fail
 from .mechanics import LumpedSpec
@@ -383,14 +385,31 @@ def _two_mass(chain: ChainModel) -> None:
 
 
 def _damp(spec: "ComponentsSpec", chain: ChainModel) -> None:
-    for k, s in enumerate(chain.springs):
+    """A spring without a damping of its own gets a loss proportional to its stiffness, ``c = 2ζ·k/ω``,
+    ``ω`` the frequency of the chain's mode whose strain energy lies most in that spring: that mode then
+    has the damping ratio ζ (the others a little more or less, by ``ω_i/ω`` times their share of strain
+    in the spring; docs/components.md). Modes of the undamped chain in the motor's coordinate."""
+    if not chain.springs:
+        return
+    j = np.array([b.referred for b in chain.bodies])
+    k = np.array([_referred_stiffness(chain, i) for i in range(len(chain.springs))])
+    n = len(j)
+    stiff = np.zeros((n, n))
+    for i, ki in enumerate(k):
+        stiff[i:i + 2, i:i + 2] += ki * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    scale = 1.0 / np.sqrt(j)
+    w2, v = np.linalg.eigh(scale[:, None] * stiff * scale[None, :])
+    shapes = scale[:, None] * v                      # mass-normalised mode shapes, columns
+    strain = k[:, None] * (shapes[:-1, :] - shapes[1:, :]) ** 2   # spring × mode
+    omega = np.sqrt(np.clip(w2, 0.0, None))
+    flexible = omega > 1e-6 * omega.max()
+    for i, s in enumerate(chain.springs):
         if s.damping is not None and chain.detail != "2-mass":
             continue
-        ja = sum(b.referred for b in chain.bodies[: k + 1])
-        jb = sum(b.referred for b in chain.bodies[k + 1:])
-        reduced = ja * jb / (ja + jb) / chain.bodies[k + 1].gain ** 2   # in the spring's coordinate
-        s.damping = 2.0 * spec.damping_ratio * math.sqrt(s.stiffness * reduced)
-        s.rule += f"; damping 2ζ√(k·m), ζ = {spec.damping_ratio:g}"
+        share = np.where(flexible, strain[i] / np.where(flexible, strain.sum(axis=0), 1.0), -1.0)
+        w = float(omega[int(np.argmax(share))])
+        s.damping = 2.0 * spec.damping_ratio * s.stiffness / w
+        s.rule += f"; damping 2ζ·k/ω, ζ = {spec.damping_ratio:g}, ω = 2π·{w / (2 * math.pi):.6g} Hz (its mode)"
 
 
 def _sensors(spec: "ComponentsSpec", chain: ChainModel, sensor_at: list[tuple[int, Any, str]],
