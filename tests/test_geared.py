@@ -93,3 +93,30 @@ def test_each_full_chain_mode_is_damped_near_the_ratio_asked():
     assert len(flexible) == 3
     assert 0.9 * 0.03 <= flexible[0].damping_ratio <= 1.5 * 0.03
     assert all(m.damping_ratio >= 0.5 * 0.03 for m in flexible)
+
+
+def test_sensors_follow_their_body_when_the_detail_lumps_it():
+    # motor encoder and a screw-end encoder behind a 5:1 gearbox and a 10 mm lead: in the rigid detail the only
+    # body is the table, so the motor angle is x·5·2π/0.01 rad and the screw angle x·2π/0.01 rad; at 2-mass the
+    # screw end (compliance share below one half: the stiff gearbox and coupling come first) joins the motor's
+    # side, the screw turning at 1/5 of the motor.
+    parts = [{"kind": "motor", "rotor_inertia": 7e-4},
+             {"kind": "gearbox", "ratio": 5, "input_inertia": 1e-4, "torsional_stiffness": 3e4},
+             {"kind": "coupling", "inertia": 1e-4, "torsional_stiffness": 2e4},
+             {"kind": "ball-screw", "lead": "10 mm", "diameter": "32 mm", "root_diameter": "25.3 mm", "length": "1 m",
+              "mounting": "fixed-fixed", "nut_stiffness": 5e8, "bearing_stiffness": 6e8},
+             {"kind": "table", "mass": 250}, {"kind": "encoder", "resolution": 4096},
+             {"kind": "encoder", "resolution": 1000, "mounting": "load", "name": "screw_end"}]
+
+    def sensors(detail):
+        m = machine_from_dict({"axes": {"X": {"mechanics": {"type": "components", "parts": parts, "detail": detail}}}})
+        return {s.name: s for s in build_mechanics(m.axes["X"].mechanics).sensors}
+
+    rigid = sensors("rigid")
+    assert rigid["encoder"].vector.tolist() == pytest.approx([5 * 2 * math.pi / 0.010], rel=1e-14)
+    assert rigid["screw_end"].vector.tolist() == pytest.approx([2 * math.pi / 0.010], rel=1e-14)
+    assert rigid["encoder"].unit == "rotational"
+    two = sensors("2-mass")
+    assert two["screw_end"].vector.tolist() == pytest.approx([0.2, 0.0], rel=1e-14)
+    full = sensors("full")
+    assert full["screw_end"].vector.tolist() == [0.0, 0.0, 0.0, 1.0, 0.0]   # the screw at the nut
