@@ -107,6 +107,11 @@ class ComponentsSpec(Spec):
         return self
 
     @property
+    def warnings(self) -> list[str]:
+        """Datasheet values that disagree by more than half the tolerance (but within it)."""
+        return list(self._warnings)  # type: ignore[attr-defined]
+
+    @property
     def chain(self) -> ChainModel:
         """What the lowering derived: bodies, springs, sensors, with their sources."""
         return self._chain  # type: ignore[attr-defined]
@@ -200,20 +205,30 @@ def _check_needed(spec: ComponentsSpec) -> None:
 
 
 def _check_datasheets(spec: ComponentsSpec) -> None:
-    """Refuse a motor whose datasheet values disagree beyond ``datasheet_tolerance`` (kT ≈ √3·kE, M0 = I0·kT)."""
+    """Refuse a motor whose datasheet values disagree beyond ``datasheet_tolerance`` (kT ≈ √3·kE,
+    T_mech = 3·R·J/kT², M0 = I0·kT); a disagreement beyond half of it is kept as a warning
+    (:attr:`ComponentsSpec.warnings`, shown by ``sicomat check``)."""
+    found: list[str] = []
+    keys = {"kT_kE": "back_emf_constant", "T_mech": "mechanical_time_constant", "M0": "stall_torque"}
     for i, part in enumerate(spec.parts):
         if part.kind != "motor" or part.torque_constant is None:
             continue
-        for w in mc.datasheet_warnings(**motor_constants(part), tolerance=spec.datasheet_tolerance):
-            key = "back_emf_constant" if w.name == "kT_kE" else "stall_torque"
+        constants = motor_constants(part)
+        for w in mc.datasheet_warnings(**constants, tolerance=spec.datasheet_tolerance):
+            key = keys[w.name]
             raise fail("inconsistent datasheet values: {text}; fix the values or their bases, or widen "
                        "'datasheet_tolerance' if the datasheet really says so", f"parts.{i}.{key}",
                        getattr(part, key), text=w.message)
+        for w in mc.datasheet_warnings(**constants, tolerance=spec.datasheet_tolerance / 2):
+            found.append(f"parts.{i}.{keys[w.name]}: {w.message.split(' (check')[0]} (within the "
+                         f"{spec.datasheet_tolerance:g} tolerance)")
+    object.__setattr__(spec, "_warnings", found)
 
 
 def motor_constants(motor: Any) -> dict[str, Any]:
     """A rotary motor part's constants in the checks' conventions: ``torque_constant`` per A rms,
-    ``back_emf_constant`` line-to-line rms (V·s/rad), ``phase_resistance``, ``stall_current`` (A rms,
+    ``back_emf_constant`` line-to-line rms (V·s/rad), ``phase_resistance``, ``mechanical_time_constant``,
+    ``stall_current`` (A rms,
     the currents read in the torque constant's basis), ``stall_torque``, ``rotor_inertia``."""
     kt = mc.torque_constant_rms(motor.torque_constant, motor.torque_constant_basis)
     scale = math.sqrt(0.5) if motor.torque_constant_basis == "peak" else 1.0   # current values to A rms
@@ -222,6 +237,8 @@ def motor_constants(motor: Any) -> dict[str, Any]:
         out["back_emf_constant"] = mc.back_emf_line_rms(motor.back_emf_constant, motor.back_emf_basis)
     if motor.resistance is not None:
         out["phase_resistance"] = mc.phase_resistance(motor.resistance, motor.resistance_basis)
+    if motor.mechanical_time_constant is not None:
+        out["mechanical_time_constant"] = motor.mechanical_time_constant
     if motor.stall_current is not None and motor.stall_torque is not None:
         out["stall_current"] = motor.stall_current * scale
         out["stall_torque"] = motor.stall_torque
