@@ -120,3 +120,18 @@ def test_sensors_follow_their_body_when_the_detail_lumps_it():
     assert two["screw_end"].vector.tolist() == pytest.approx([0.2, 0.0], rel=1e-14)
     full = sensors("full")
     assert full["screw_end"].vector.tolist() == [0.0, 0.0, 0.0, 1.0, 0.0]   # the screw at the nut
+
+
+def test_a_copied_or_pickled_drive_chain_derives_its_own_chain():
+    # model_copy(update=...) does not validate: the derived chain must follow the copy's fields, not the
+    # original's; a pickled machine (Dask ships them to workers) must load with its part classes
+    import pickle
+
+    machine = machine_from_dict(_screw_axis("full"))
+    spec = machine.axes["X"].mechanics
+    moved = spec.model_copy(update={"position": 0.9})
+    assert spec.chain.position == 0.6 and moved.chain.position == 0.9
+    axial = {s.name: s.stiffness for s in moved.chain.springs}["screw_axial"]
+    assert axial < {s.name: s.stiffness for s in spec.chain.springs}["screw_axial"]   # A·E/x: softer further out
+    again = pickle.loads(pickle.dumps(machine))
+    assert again == machine and again.axes["X"].mechanics.chain.position == 0.6

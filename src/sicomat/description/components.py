@@ -37,7 +37,7 @@ _STAGE_WORDS = {0: "the motor", 1: "couplings and gearboxes", 2: "the transmissi
 
 def _part_class(kind: str, params: type[Spec]) -> type[Spec]:
     title = "".join(w.capitalize() for w in kind.split("-")) + "Part"
-    return create_model(title, __base__=params, __doc__=f"A ``{kind}`` part of a drive chain.",
+    return create_model(title, __base__=params, __doc__=f"A ``{kind}`` part of a drive chain.", __module__=__name__,
                         kind=(Literal[kind], ...),  # type: ignore[arg-type]
                         id=(Annotated[str, Field(min_length=1)] | None, None),
                         name=(Name | None, None))
@@ -45,6 +45,7 @@ def _part_class(kind: str, params: type[Spec]) -> type[Spec]:
 
 PART_CLASSES: dict[str, type[Spec]] = {kind: _part_class(kind, params) for kind, params in KINDS.items()}
 """Kind → the part schema: the kind's parameters (:mod:`.parts`) plus ``kind``, ``id`` and ``name``."""
+globals().update({cls.__name__: cls for cls in PART_CLASSES.values()})   # importable by name: they pickle
 if TYPE_CHECKING:   # the parts' classes are made at import; a type checker sees them as Any
     Part = Any
 else:
@@ -102,9 +103,18 @@ class ComponentsSpec(Spec):
                        "(Hz, e.g. the velocity loop's)", "bandwidth", None)
         _check_needed(self)
         _check_datasheets(self)
-        chain = derive(self)      # the position inside the stroke, positive stiffnesses
-        object.__setattr__(self, "_chain", chain)
+        self._remember(derive(self))     # the position inside the stroke, positive stiffnesses
         return self
+
+    def _key(self) -> tuple[Any, ...]:
+        """What the derived chain depends on: the parts are frozen, so their identities stand for them
+        (``model_copy(update=...)`` makes a new key and the chain is derived again)."""
+        return (self.position, self.detail, self.bandwidth, self.bandwidth_multiple, self.damping_ratio,
+                tuple(map(id, self.parts)))
+
+    def _remember(self, chain: ChainModel) -> ChainModel:
+        object.__setattr__(self, "_chain_cache", (self._key(), chain))
+        return chain
 
     @property
     def warnings(self) -> list[str]:
@@ -114,7 +124,10 @@ class ComponentsSpec(Spec):
     @property
     def chain(self) -> ChainModel:
         """What the lowering derived: bodies, springs, sensors, with their sources."""
-        return self._chain  # type: ignore[attr-defined]
+        key, chain = getattr(self, "_chain_cache", (None, None))
+        if key == self._key() and isinstance(chain, ChainModel):
+            return chain
+        return self._remember(derive(self))
 
     def to_lumped(self) -> LumpedSpec:
         """The chain as a :class:`~sicomat.description.mechanics.LumpedSpec`."""
