@@ -1,6 +1,8 @@
 """Catalogue ids in model files: fill each ``components`` part that names an ``id`` with the entry's values
 the file does not give (the file's own values win: they are overrides, or the values a saved model
-recorded). Runs on the plain data, before validation (:func:`sicomat.io.modelfile.machine_from_dict`).
+recorded). A part with ``recorded = true`` (Save Model wrote the entry's values beside its id) is
+left as it is: it loads unchanged when the entry changes or is gone. Runs on the plain data, before
+validation (:func:`sicomat.io.modelfile.machine_from_dict`).
 """
 
 from __future__ import annotations
@@ -22,8 +24,8 @@ def _component_parts(data: Mapping[str, Any]):
         if not (isinstance(mech, dict) and mech.get("type") == "components" and isinstance(mech.get("parts"), list)):
             continue
         for i, part in enumerate(mech["parts"]):
-            if isinstance(part, dict) and "id" in part:
-                yield axis, i, part
+            if isinstance(part, dict) and "id" in part and part.get("recorded") is not True:
+                yield axis, i, part   # a recorded part holds the entry's values as saved: not read again
 
 
 def uses_catalogue(data: Mapping[str, Any]) -> bool:

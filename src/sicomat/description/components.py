@@ -40,11 +40,14 @@ def _part_class(kind: str, params: type[Spec]) -> type[Spec]:
     return create_model(title, __base__=params, __doc__=f"A ``{kind}`` part of a drive chain.",
                         kind=(Literal[kind], ...),  # type: ignore[arg-type]
                         id=(Annotated[str, Field(min_length=1)] | None, None),
+                        recorded=(bool | None, None),
                         name=(Name | None, None))
 
 
 PART_CLASSES: dict[str, type[Spec]] = {kind: _part_class(kind, params) for kind, params in KINDS.items()}
-"""Kind → the part schema: the kind's parameters (:mod:`.parts`) plus ``kind``, ``id`` and ``name``."""
+"""Kind → the part schema: the kind's parameters (:mod:`.parts`) plus ``kind``, ``id``, ``recorded`` and
+``name``. ``recorded = true`` (written by Save Model beside an ``id``): the part holds the entry's values as
+they were when the model was saved, and the loader does not read the entry again."""
 if TYPE_CHECKING:   # the parts' classes are made at import; a type checker sees them as Any
     Part = Any
 else:

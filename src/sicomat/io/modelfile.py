@@ -243,10 +243,12 @@ def dump_data(machine: Machine) -> dict[str, Any]:
 
 
 def dump_model(machine: Machine) -> str:
-    """The machine as TOML text (SI numbers)."""
+    """The machine as TOML text (SI numbers; catalogue parts with their values, ``recorded = true``)."""
     import tomli_w
 
-    return tomli_w.dumps(dump_data(machine))
+    from .implied import recorded
+
+    return tomli_w.dumps(recorded(dump_data(machine)))
 
 
 def save_model(machine: Machine, path: str | os.PathLike, *, based_on: str | os.PathLike | None = None,
@@ -287,35 +289,25 @@ def save_model(machine: Machine, path: str | os.PathLike, *, based_on: str | os.
 
 def model_text(machine: Machine, *, based_on: str | os.PathLike | None = None, header: str | None = None) -> str:
     """The TOML text :func:`save_model` writes."""
+    from .implied import as_written, implied_drive_left_out, recorded
     from .modeltext import comment_lines, edited_model_text
 
-    new = dump_data(machine)
+    new = recorded(dump_data(machine))
     if based_on is not None:
         original = _read_text(based_on)
         raw = _read_toml(original, str(based_on))
-        old = _as_written(dump_data(machine_from_dict(raw, source=str(based_on))), raw)
+        before = machine_from_dict(raw, source=str(based_on))
+        old = as_written(dump_data(before), raw, before)
+        edit = implied_drive_left_out(new, raw, machine)
         for keep_units in (True, False):
-            text = edited_model_text(original, old, new, header=header, keep_units=keep_units)
+            text = edited_model_text(original, old, edit, header=header, keep_units=keep_units)
             if _reads_as(text, new):
                 return text
         header = ((header + "\n") if header else "") + \
             f"Written as plain SI numbers: the comments and units of {based_on} could not be kept."
-    return (comment_lines(header) if header else "") + dump_model(machine)
+    import tomli_w
 
-
-def _as_written(old: dict[str, Any], raw: Mapping[str, Any]) -> dict[str, Any]:
-    """``old`` with each catalogue part cut down to the keys its file wrote: the entry's values are then
-    written into the saved file (Save Model records them, so it loads unchanged when the catalogue
-    changes)."""
-    for axis, spec in (raw.get("axes") or {}).items():
-        parts = (spec.get("mechanics") or {}).get("parts") if isinstance(spec, dict) else None
-        if not isinstance(parts, list):
-            continue
-        dumped = old["axes"][axis]["mechanics"]["parts"]
-        for i, part in enumerate(parts):
-            if isinstance(part, dict) and "id" in part and i < len(dumped):
-                dumped[i] = {k: v for k, v in dumped[i].items() if k in part}
-    return old
+    return (comment_lines(header) if header else "") + tomli_w.dumps(new)
 
 
 def _reads_as(text: str, data: Mapping[str, Any]) -> bool:
