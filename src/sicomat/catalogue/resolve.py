@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping
 
+from ..description.parts import KINDS
 from ..errors import ModelError
 from .store import Catalogue, load_catalogue
 
@@ -49,19 +50,28 @@ def resolve_parts(data: Mapping[str, Any], catalogue: Catalogue | Callable[[], C
     ------
     ModelError
         An unknown id (the closest ids named), an id of another kind than the part's, or an id that is not
-        a string; located at ``axes.<axis>.mechanics.parts.<i>.id``.
+        a string, located at ``axes.<axis>.mechanics.parts.<i>.id``; an unknown part kind, at ``...kind``.
     """
     found = list(_component_parts(data))
     if not found:
         return dict(data)
     if catalogue is None:
         catalogue = load_catalogue
-    cat = catalogue() if callable(catalogue) else catalogue
+    try:
+        cat = catalogue() if callable(catalogue) else catalogue
+    except ModelError as exc:   # e.g. a duplicate id in a user folder: name the model that read it too
+        axis, i, _ = found[0]
+        reader = f"{source}, " if source else ""
+        raise ModelError(f"{exc.message}; the catalogue was read for {reader}axes.{axis}.mechanics.parts.{i}.id",
+                         source=exc.source, path=exc.path, value=exc.value, has_value=exc.has_value) from None
     out = dict(data)
     out["axes"] = dict(out["axes"])
     for axis, i, part in found:
         where = f"axes.{axis}.mechanics.parts.{i}.id"
         ident, kind = part["id"], part.get("kind")
+        if kind is not None and kind not in KINDS:
+            raise ModelError(f"unknown part kind; expected one of {', '.join(KINDS)}", source=source,
+                             path=f"axes.{axis}.mechanics.parts.{i}.kind", value=kind)
         if not isinstance(ident, str):
             raise ModelError("expected a catalogue id (a string)", source=source, path=where, value=ident)
         try:

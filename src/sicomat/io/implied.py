@@ -12,7 +12,7 @@ from typing import Any, Mapping
 from ..description.components import ComponentsSpec, drive_defaults
 from ..description.machine import Machine
 
-__all__ = ["recorded", "as_written", "implied_drive_left_out"]
+__all__ = ["recorded", "as_written", "implied_drive_left_out", "missing_because_of_chain"]
 
 
 def recorded(data: dict[str, Any]) -> dict[str, Any]:
@@ -76,3 +76,12 @@ def implied_drive_left_out(new: dict[str, Any], raw: Mapping[str, Any], machine:
         out["axes"][axis] = {**spec, "drive": {k: v for k, v in drive.items()
                                                if k in written or k not in implied or implied[k] != v}}
     return out
+
+
+def missing_because_of_chain(error: Any, errors: list[Any]) -> bool:
+    """Whether a validation ``error`` is a drive key missing on an axis whose drive-chain mechanics failed
+    (one of ``errors``): the drive takes that key from the chain's motor, so it is missing only because of
+    the mechanics' error, which is reported alone."""
+    loc = tuple(error["loc"])
+    return error["type"] == "missing" and len(loc) > 3 and loc[0] == "axes" and loc[2] == "drive" and \
+        any(tuple(e["loc"][:4]) == ("axes", loc[1], "mechanics", "components") for e in errors)

@@ -13,7 +13,7 @@ from pydantic import ValidationError
 from ..errors import ModelError
 from ..description.machine import Machine
 from ..description.registry import union_tags
-from ..description.components import PART_CLASSES
+from ..description.components import PART_CLASSES, closest_parameters
 from ..catalogue.resolve import resolve_parts
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -343,7 +343,9 @@ def _read_text(path: str | os.PathLike) -> str:
 
 # --------------------------------------------------------------------------- errors
 def _translate(exc: ValidationError, source: str | None) -> ModelError:
-    errors = exc.errors()
+    from .implied import missing_because_of_chain
+
+    errors = [e for e in exc.errors() if not missing_because_of_chain(e, exc.errors())] or exc.errors()
     first = errors[0]
     loc = [str(p) for p in first["loc"]]
     loc = [p for i, p in enumerate(loc) if not (i > 0 and p in _UNION_TAGS.get(loc[i - 1], ()))
@@ -361,6 +363,8 @@ def _translate(exc: ValidationError, source: str | None) -> ModelError:
         message, has_value = "missing required key", False
     elif kind == "extra_forbidden":
         message = "unknown key (not part of the model-file schema; check its spelling)"
+        if len(loc) > 2 and loc[-3] == "parts" and str(first["loc"][-2]) in PART_CLASSES:   # a part's parameter
+            message += closest_parameters(str(first["loc"][-2]), loc[-1])
     elif kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
         message = "expected a value " + first["msg"].removeprefix("Input should be ")
     elif kind in ("union_tag_invalid", "union_tag_not_found") and len(loc) > 1 and loc[-2] == "parts":
