@@ -243,8 +243,8 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
     for j, body in enumerate(b.bodies):   # a body no part named: after its spring
         if not body.name:
             body.name = b.unique(f"{b.springs[j - 1].name}_out" if j else "motor")
-    for up, s in zip(b.bodies, b.springs):
-        s.between = (s.between[0], b.bodies[b.bodies.index(up) + 1].name)
+    for k, s in enumerate(b.springs):     # spring k joins bodies k and k + 1 (both named only now)
+        s.between = (b.bodies[k].name, b.bodies[k + 1].name)
     # encoder inertias
     for i, p, mark in sensor_at:
         if mark == "pending-inertia":
