@@ -123,6 +123,42 @@ def test_rigid_detail_is_one_body_with_the_referred_inertias():
         assert m_rigid == pytest.approx(expected, rel=1e-11), detail
 
 
+
+def gearbox_parts(i: float = 5.0, jg: float = 2e-4, kg: float = 3e4) -> list[dict]:
+    return [screw_parts()[0], screw_parts()[1], {"kind": "gearbox", "ratio": i, "input_inertia": jg,
+                                                 "torsional_stiffness": kg}, *screw_parts()[2:]]
+
+
+def test_motor_coupling_gearbox_screw_chain_by_hand():
+    # every spring joins the bodies before and after it (a coupling then a gearbox used to leave the gearbox
+    # spring's first body unnamed: a chain of motor, coupling, gearbox and screw did not load)
+    i, jg, kg, x = 5.0, 2e-4, 3e4, 0.5
+    chain = components(gearbox_parts(i, jg, kg), position=x).chain
+    names = [b.name for b in chain.bodies]
+    assert all(names) and len(set(names)) == len(names)
+    for k, spring in enumerate(chain.springs):
+        assert spring.between == (names[k], names[k + 1]), spring.name
+    springs = by_name(chain.springs)
+    assert list(springs) == ["coupling", "gearbox", "screw_torsion", "screw_axial"]
+    # the gearbox's stiffness stays at its output, its stretch θ_in/i − θ_out
+    assert springs["gearbox"].ratio == pytest.approx(1 / i, rel=REL) and springs["gearbox"].stiffness == kg
+    near = JS * (x / L) / 2
+    values = [b.value for b in chain.bodies]
+    assert values == pytest.approx([JM + JC / 2, JC / 2 + jg, near, JS - near, M], rel=REL)
+    # rigid: the motor-side inertias seen at the table through (lead/i)², the screw's through lead²
+    (body,) = components(gearbox_parts(i, jg, kg), position=x, detail="rigid").chain.bodies
+    assert body.value == pytest.approx(M + (JM + JC + jg) * i ** 2 / LEAD ** 2 + JS / LEAD ** 2, rel=REL)
+
+
+def test_a_motor_shaft_spring_comes_first():
+    parts = screw_parts()
+    parts[0]["shaft_torsional_stiffness"] = 2e4
+    chain = components(parts, position=0.5).chain
+    assert [s.name for s in chain.springs] == ["motor_shaft", "coupling", "screw_torsion", "screw_axial"]
+    shaft, coupling = chain.springs[:2]
+    assert shaft.stiffness == 2e4 and shaft.between[0] == "motor" and coupling.between[0] == shaft.between[1]
+    assert [b.value for b in chain.bodies[:2]] == pytest.approx([JM, JC / 2], rel=REL)
+
 # --------------------------------------------------------------------------- belts
 RB, JP, CSPEC, MU = 0.0382, 2.528e-4, 5.5e5, 0.16     # pulley radius, pulley inertia, c_spec (N), kg/m
 
