@@ -65,7 +65,7 @@ def write_lumped(machine: "Machine", path: "str | os.PathLike", based_on: "str |
 
     chains = {name: axis.mechanics for name, axis in machine.axes.items() if isinstance(axis.mechanics, ComponentsSpec)}
     lines = ["Written by `sicomat check --write-lumped`" + (f" from {based_on}" if based_on is not None else "")
-             + ": each drive-chain axis (type = \"components\") replaced by its lumped bodies and couplings"]
+             + ":", "each drive-chain axis (type = \"components\") replaced by its lumped bodies and couplings;"]
     for name, mech in chains.items():
         chain = mech.chain
         lines.append(f"axis {name}: detail {chain.detail!r}, position {chain.position:.6g} m"
@@ -82,10 +82,13 @@ def write_checked(machine: "Machine", path: "str | os.PathLike", based_on: "str 
     ``--set`` overrides written in (comments and units kept, changed values marked ``# was``); catalogue
     parts record their ids and values (``recorded = true``), so the file loads unchanged when the
     catalogue changes."""
+    from ..description.components import ComponentsSpec
     from ..io.modelfile import save_model
 
+    catalogued = any(part.id for axis in machine.axes.values() if isinstance(axis.mechanics, ComponentsSpec)
+                     for part in axis.mechanics.parts)
     header = ("Written by `sicomat check --write`" + (f" from {based_on}" if based_on is not None else "")
               + ": the validated model"
               + (" with " + " ".join(f"--set {item}" for item in overrides) + " applied" if overrides else "")
-              + ".\nCatalogue parts record their values at save time (recorded = true).")
+              + "." + ("\nCatalogue parts record their values at save time (recorded = true)." if catalogued else ""))
     return save_model(machine, path, based_on=based_on, header=header)
