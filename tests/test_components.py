@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -495,7 +496,7 @@ def test_write_lumped_gives_identical_modes_and_margins(cat_model, tmp_path):
     written = load_model(out)
     assert written.axes["X"].mechanics.type == "lumped"
     # the drive's constants that came from the motor are written out (the lumped file has no motor)
-    drive_table = __import__("tomllib").loads(out.read_text())["axes"]["X"]["drive"]
+    drive_table = tomllib.loads(out.read_text())["axes"]["X"]["drive"]
     assert drive_table["force_constant"] == entry("servo-motor-400v-11nm").torque_constant
     # the other blocks keep their text (comments, units)
     assert 'bandwidth = "1500 Hz"   # the current loop' in out.read_text()
@@ -556,6 +557,7 @@ def test_a_saved_model_loads_unchanged_after_its_entries_change(cat_model, tmp_p
     assert result.exit_code == 0, result.output
     text = tuned.read_text()
     assert 'id = "table-400kg"' in text and "recorded = true" in text and "mass = 400.0" in text   # ids and values
+    assert "force_constant" not in text          # the drive stays implied by the (recorded) motor
     before, original = modal(tuned), modal(cat_model)
     np.testing.assert_allclose(before, original, rtol=1e-12)
     mine = tmp_path / "mine"
@@ -591,7 +593,7 @@ def test_save_model_in_python_records_the_catalogue_values(cat_model, tmp_path):
 
     machine = with_overrides(load_model(cat_model), {"axes.X.mechanics.position": 0.7})
     out = save_model(machine, tmp_path / "plain.toml")             # no based_on: plain SI numbers
-    data = __import__("tomllib").loads(out.read_text())
+    data = tomllib.loads(out.read_text())
     table = data["axes"]["X"]["mechanics"]["parts"][4]
     assert table == {"kind": "table", "id": "table-400kg", "recorded": True, "mass": 400.0}
     assert load_model(out).axes["X"].mechanics.chain.position == 0.7

@@ -30,7 +30,8 @@ def _component_parts(data: Mapping[str, Any]):
 
 
 def uses_catalogue(data: Mapping[str, Any]) -> bool:
-    """Whether any ``components`` part of ``data`` names a catalogue ``id``."""
+    """Whether any ``components`` part of ``data`` names a catalogue ``id`` the loader looks up (not a
+    ``recorded`` one)."""
     return next(_component_parts(data), None) is not None
 
 
