@@ -664,3 +664,19 @@ def test_unknown_id_by_set_names_the_override(cat_model):
     result = run("check", str(cat_model), "--set", "axes.X.mechanics.parts.4.id=table-40kg")
     assert_one_line(result, "--set axes.X.mechanics.parts.4.id=table-40kg", "unknown catalogue id", "closest")
 
+
+
+@pytest.mark.parametrize("detail, extra", [("full", {}), ("2-mass", {}), ("rigid", {}),
+                                           ("auto", {"bandwidth": 30.0})])
+def test_write_lumped_gives_the_same_matrices_at_every_detail(tmp_path, detail, extra):
+    from sicomat.tasks.lumped import write_lumped
+
+    mech = {"type": "components", "parts": screw_parts("fixed-fixed"), "position": 0.35, "detail": detail, **extra}
+    machine = machine_from_dict({"axes": {"X": {"mechanics": mech}}})
+    out = write_lumped(machine, tmp_path / "lumped.toml")
+    a = build_mechanics(machine.axes["X"].mechanics)
+    b = build_mechanics(load_model(out).axes["X"].mechanics)
+    assert load_model(out).axes["X"].mechanics.type == "lumped" and a.dof_names == b.dof_names
+    # every number is a float written by repr and read back exactly, assembled by the same code: bit for bit
+    for name in ("mass", "stiffness", "damping"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
