@@ -1,12 +1,15 @@
 """Catalogue ids in model files: fill each ``components`` part that names an ``id`` with the entry's values
 the file does not give (the file's own values win: they are overrides, or the values a saved model
-recorded). Runs on the plain data, before validation (:func:`sicomat.io.modelfile.machine_from_dict`).
+recorded). A part with ``recorded = true`` (its entry's values beside its id: Save Model writes it so, and
+every part filled here is marked so, read once) is left as it is: it loads unchanged when the entry changes or
+is gone. Runs on the plain data, before validation (:func:`sicomat.io.modelfile.machine_from_dict`).
 """
 
 from __future__ import annotations
 
 from typing import Any, Callable, Mapping
 
+from ..description.parts import KINDS
 from ..errors import ModelError
 from .store import Catalogue, load_catalogue
 
@@ -40,12 +43,13 @@ def _component_parts(data: Mapping[str, Any]):
         if not (isinstance(mech, dict) and mech.get("type") == "components" and isinstance(mech.get("parts"), list)):
             continue
         for i, part in enumerate(mech["parts"]):
-            if isinstance(part, dict) and "id" in part:
-                yield axis, i, part
+            if isinstance(part, dict) and "id" in part and part.get("recorded") is not True:
+                yield axis, i, part   # a recorded part holds the entry's values as saved: not read again
 
 
 def uses_catalogue(data: Mapping[str, Any]) -> bool:
-    """Whether any ``components`` part of ``data`` names a catalogue ``id``."""
+    """Whether any ``components`` part of ``data`` names a catalogue ``id`` the loader looks up (not a
+    ``recorded`` one)."""
     return next(_component_parts(data), None) is not None
 
 
@@ -66,19 +70,28 @@ def resolve_parts(data: Mapping[str, Any], catalogue: Catalogue | Callable[[], C
     ------
     ModelError
         An unknown id (the closest ids named), an id of another kind than the part's, or an id that is not
-        a string; located at ``axes.<axis>.mechanics.parts.<i>.id``.
+        a string, located at ``axes.<axis>.mechanics.parts.<i>.id``; an unknown part kind, at ``...kind``.
     """
     found = list(_component_parts(data))
     if not found:
         return dict(data)
     if catalogue is None:
         catalogue = default_catalogue
-    cat = catalogue() if callable(catalogue) else catalogue
+    try:
+        cat = catalogue() if callable(catalogue) else catalogue
+    except ModelError as exc:   # e.g. a duplicate id in a user folder: name the model that read it too
+        axis, i, _ = found[0]
+        reader = f"{source}, " if source else ""
+        raise ModelError(f"{exc.message}; the catalogue was read for {reader}axes.{axis}.mechanics.parts.{i}.id",
+                         source=exc.source, path=exc.path, value=exc.value, has_value=exc.has_value) from None
     out = dict(data)
     out["axes"] = dict(out["axes"])
     for axis, i, part in found:
         where = f"axes.{axis}.mechanics.parts.{i}.id"
         ident, kind = part["id"], part.get("kind")
+        if kind is not None and kind not in KINDS:
+            raise ModelError(f"unknown part kind; expected one of {', '.join(KINDS)}", source=source,
+                             path=f"axes.{axis}.mechanics.parts.{i}.kind", value=kind)
         if not isinstance(ident, str):
             raise ModelError("expected a catalogue id (a string)", source=source, path=where, value=ident)
         try:
@@ -88,5 +101,5 @@ def resolve_parts(data: Mapping[str, Any], catalogue: Catalogue | Callable[[], C
         axis_data = out["axes"][axis] = dict(out["axes"][axis])
         mech = axis_data["mechanics"] = dict(axis_data["mechanics"])
         parts = mech["parts"] = list(mech["parts"])
-        parts[i] = {"kind": entry.kind, **entry.parameter_values(), **part}
+        parts[i] = {"kind": entry.kind, **entry.parameter_values(), **part, "recorded": True}   # read once
     return out

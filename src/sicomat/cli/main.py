@@ -44,19 +44,59 @@ def _root(version: bool = typer.Option(False, "--version", is_eager=True, callba
 
 @app.command()
 def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
+          lumped: bool = typer.Option(False, "--lumped",
+                                      help="Show what each drive-chain axis (type = \"components\") is lowered to: "
+                                           "bodies, springs and their rules, frictions, sensors, notes, and the "
+                                           "drive's constants taken from the motor."),
+          axis: Optional[str] = typer.Option(None, "--axis", help="With --lumped: only this axis (default: all)."),
+          write_lumped: Optional[Path] = typer.Option(None, "--write-lumped", metavar="LUMPED.toml", dir_okay=False,
+                                                      help="Write the model with each drive-chain axis replaced by "
+                                                           "its plain type = \"lumped\" equivalent."),
+          write: Optional[Path] = typer.Option(None, "--write", metavar="MODEL.toml", dir_okay=False,
+                                               help="Save the validated model with the --set overrides applied "
+                                                    "(catalogue parts record their values)."),
           json_: bool = JsonOption) -> None:
     """Validate a model file and summarise its axes, dofs and couplings."""
     with guarded(model):
+        from ..io.atomic import check_outputs
         from ..mechanics.lumped import check_axis_mechanics
         from .tables import check_payload, print_check
 
+        check_outputs({"--write-lumped": (write_lumped, "model"), "--write": (write, "model")},
+                      {"the model file": model})
         machine = load(model, set_)
         mechanics = {name: check_axis_mechanics(name, axis.mechanics) for name, axis in machine.axes.items()}
         payload = check_payload(machine, mechanics)
+        if lumped or axis is not None:
+            from ..tasks.lumped import drive_chain_payload
+
+            shown = [machine.axis_name(axis)] if axis is not None else list(machine.axes)
+            for name in shown:
+                payload["axes"][name]["drive_chain"] = drive_chain_payload(machine, name)
+        if write_lumped is not None:
+            from ..tasks.lumped import lumped_machine, write_lumped as save_lumped
+
+            lumped_machine(machine)            # refused before anything is written
+            save_lumped(machine, write_lumped, based_on=model)
+            payload["written_lumped"] = str(write_lumped)
+        if write is not None:
+            from ..tasks.lumped import write_checked
+
+            write_checked(machine, write, based_on=model, overrides=set_)
+            payload["written"] = str(write)
         if json_:
             emit_json(payload)
         else:
             print_check(str(model), payload)
+            if lumped or axis is not None:
+                from .tables import print_drive_chain
+
+                for name, info in payload["axes"].items():
+                    if "drive_chain" in info:
+                        print_drive_chain(name, info["drive_chain"])
+            for key, what in (("written_lumped", "lumped equivalent"), ("written", "model")):
+                if key in payload:
+                    typer.echo(f"wrote the {what} to {payload[key]}")
 
 
 @app.command()

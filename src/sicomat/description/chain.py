@@ -246,8 +246,8 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
     for j, body in enumerate(b.bodies):   # a body no part named: after its spring
         if not body.name:
             body.name = b.unique(f"{b.springs[j - 1].name}_out" if j else "motor")
-    for j, s in enumerate(b.springs):       # spring j joins bodies j and j + 1 of the walk
-        s.between = (b.bodies[j].name, b.bodies[j + 1].name)
+    for k, s in enumerate(b.springs):     # spring k joins bodies k and k + 1 (both named only now)
+        s.between = (b.bodies[k].name, b.bodies[k + 1].name)
     # encoder inertias
     for i, p, mark in sensor_at:
         if mark == "pending-inertia":

@@ -24,7 +24,8 @@ from .mechanics import LumpedSpec
 from .parts import KINDS
 from .registry import register
 
-__all__ = ["ComponentsSpec", "PART_CLASSES", "STAGES", "DETAILS", "drive_defaults", "motor_constants"]
+__all__ = ["ComponentsSpec", "PART_CLASSES", "STAGES", "DETAILS", "drive_defaults", "motor_constants",
+           "closest_parameters"]
 
 DETAILS = ("rigid", "2-mass", "full", "auto")
 STAGES: dict[str, int] = {"motor": 0, "linear-motor": 0, "coupling": 1, "gearbox": 1, "ball-screw": 2, "belt": 2,
@@ -40,12 +41,29 @@ def _part_class(kind: str, params: type[Spec]) -> type[Spec]:
     return create_model(title, __base__=params, __doc__=f"A ``{kind}`` part of a drive chain.", __module__=__name__,
                         kind=(Literal[kind], ...),  # type: ignore[arg-type]
                         id=(Annotated[str, Field(min_length=1)] | None, None),
+                        recorded=(bool | None, None),
                         name=(Name | None, None))
 
 
 PART_CLASSES: dict[str, type[Spec]] = {kind: _part_class(kind, params) for kind, params in KINDS.items()}
-"""Kind → the part schema: the kind's parameters (:mod:`.parts`) plus ``kind``, ``id`` and ``name``."""
+"""Kind → the part schema: the kind's parameters (:mod:`.parts`) plus ``kind``, ``id``, ``recorded`` and
+``name``. ``recorded = true`` (written by Save Model beside an ``id``): the part holds the entry's values as
+they were when the model was saved, and the loader does not read the entry again."""
 globals().update({cls.__name__: cls for cls in PART_CLASSES.values()})   # importable by name: they pickle
+
+
+def closest_parameters(kind: str, name: str) -> str:
+    """``"; closest <kind> parameters: ..."`` for a misspelt key ``name`` of a ``kind`` part ('' if none).
+
+    >>> closest_parameters("ball-screw", "mountng")
+    '; closest ball-screw parameters: mounting'
+    """
+    import difflib
+
+    close = difflib.get_close_matches(name, list(PART_CLASSES[kind].model_fields), n=3)
+    return f"; closest {kind} parameters: {', '.join(close)}" if close else ""
+
+
 if TYPE_CHECKING:   # the parts' classes are made at import; a type checker sees them as Any
     Part = Any
 else:

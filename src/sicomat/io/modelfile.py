@@ -13,7 +13,7 @@ from pydantic import ValidationError
 from ..errors import ModelError
 from ..description.machine import Machine
 from ..description.registry import union_tags
-from ..description.components import PART_CLASSES
+from ..description.components import PART_CLASSES, closest_parameters
 from ..catalogue.resolve import resolve_parts
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -243,10 +243,12 @@ def dump_data(machine: Machine) -> dict[str, Any]:
 
 
 def dump_model(machine: Machine) -> str:
-    """The machine as TOML text (SI numbers)."""
+    """The machine as TOML text (SI numbers; catalogue parts with their values, ``recorded = true``)."""
     import tomli_w
 
-    return tomli_w.dumps(dump_data(machine))
+    from .implied import recorded
+
+    return tomli_w.dumps(recorded(dump_data(machine)))
 
 
 def save_model(machine: Machine, path: str | os.PathLike, *, based_on: str | os.PathLike | None = None,
@@ -287,35 +289,25 @@ def save_model(machine: Machine, path: str | os.PathLike, *, based_on: str | os.
 
 def model_text(machine: Machine, *, based_on: str | os.PathLike | None = None, header: str | None = None) -> str:
     """The TOML text :func:`save_model` writes."""
+    from .implied import as_written, implied_drive_left_out, recorded
     from .modeltext import comment_lines, edited_model_text
 
-    new = dump_data(machine)
+    new = recorded(dump_data(machine))
     if based_on is not None:
         original = _read_text(based_on)
         raw = _read_toml(original, str(based_on))
-        old = _as_written(dump_data(machine_from_dict(raw, source=str(based_on))), raw)
+        before = machine_from_dict(raw, source=str(based_on))
+        old = as_written(dump_data(before), raw, before)
+        edit = implied_drive_left_out(new, raw, machine)
         for keep_units in (True, False):
-            text = edited_model_text(original, old, new, header=header, keep_units=keep_units)
+            text = edited_model_text(original, old, edit, header=header, keep_units=keep_units)
             if _reads_as(text, new):
                 return text
         header = ((header + "\n") if header else "") + \
             f"Written as plain SI numbers: the comments and units of {based_on} could not be kept."
-    return (comment_lines(header) if header else "") + dump_model(machine)
+    import tomli_w
 
-
-def _as_written(old: dict[str, Any], raw: Mapping[str, Any]) -> dict[str, Any]:
-    """``old`` with each catalogue part cut down to the keys its file wrote: the entry's values are then
-    written into the saved file (Save Model records them, so it loads unchanged when the catalogue
-    changes)."""
-    for axis, spec in (raw.get("axes") or {}).items():
-        parts = (spec.get("mechanics") or {}).get("parts") if isinstance(spec, dict) else None
-        if not isinstance(parts, list):
-            continue
-        dumped = old["axes"][axis]["mechanics"]["parts"]
-        for i, part in enumerate(parts):
-            if isinstance(part, dict) and "id" in part and i < len(dumped):
-                dumped[i] = {k: v for k, v in dumped[i].items() if k in part}
-    return old
+    return (comment_lines(header) if header else "") + tomli_w.dumps(new)
 
 
 def _reads_as(text: str, data: Mapping[str, Any]) -> bool:
@@ -351,7 +343,9 @@ def _read_text(path: str | os.PathLike) -> str:
 
 # --------------------------------------------------------------------------- errors
 def _translate(exc: ValidationError, source: str | None) -> ModelError:
-    errors = exc.errors()
+    from .implied import missing_because_of_chain
+
+    errors = [e for e in exc.errors() if not missing_because_of_chain(e, exc.errors())] or exc.errors()
     first = errors[0]
     loc = [str(p) for p in first["loc"]]
     loc = [p for i, p in enumerate(loc) if not (i > 0 and p in _UNION_TAGS.get(loc[i - 1], ()))
@@ -369,6 +363,8 @@ def _translate(exc: ValidationError, source: str | None) -> ModelError:
         message, has_value = "missing required key", False
     elif kind == "extra_forbidden":
         message = "unknown key (not part of the model-file schema; check its spelling)"
+        if len(loc) > 2 and loc[-3] == "parts" and str(first["loc"][-2]) in PART_CLASSES:   # a part's parameter
+            message += closest_parameters(str(first["loc"][-2]), loc[-1])
     elif kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
         message = "expected a value " + first["msg"].removeprefix("Input should be ")
     elif kind in ("union_tag_invalid", "union_tag_not_found") and len(loc) > 1 and loc[-2] == "parts":
