@@ -135,3 +135,38 @@ def test_a_copied_or_pickled_drive_chain_derives_its_own_chain():
     assert axial < {s.name: s.stiffness for s in spec.chain.springs}["screw_axial"]   # A·E/x: softer further out
     again = pickle.loads(pickle.dumps(machine))
     assert again == machine and again.axes["X"].mechanics.chain.position == 0.6
+
+
+def test_check_lumped_shows_a_datasheet_disagreement_within_the_tolerance(tmp_path):
+    # kT = 1.6 N·m/A rms against √3·kE = √3·0.98 = 1.697: 5.7 % apart, beyond half the 10 % tolerance
+    import json
+
+    from typer.testing import CliRunner
+
+    from sicomat.cli.main import app
+
+    model = tmp_path / "m.toml"
+    model.write_text('''
+[axes.X.mechanics]
+type = "components"
+[[axes.X.mechanics.parts]]
+kind = "motor"
+rotor_inertia = "7 kg*cm^2"
+torque_constant = "1.6 N*m/A"
+torque_constant_basis = "rms"
+back_emf_constant = "0.98 V*s/rad"
+back_emf_basis = "line-to-line-rms"
+[[axes.X.mechanics.parts]]
+kind = "rack-pinion"
+pinion_radius = "30 mm"
+pinion_inertia = 3e-4
+mesh_stiffness = "600 N/um"
+[[axes.X.mechanics.parts]]
+kind = "table"
+mass = 100
+''')
+    result = CliRunner().invoke(app, ["check", str(model), "--lumped", "--json"])
+    assert result.exit_code == 0, result.output
+    warnings = json.loads(result.stdout)["axes"]["X"]["drive_chain"]["datasheet_warnings"]
+    assert len(warnings) == 1 and "parts.0.back_emf_constant" in warnings[0] and "0.943" in warnings[0]
+    assert "warning" in CliRunner().invoke(app, ["check", str(model), "--lumped"]).output

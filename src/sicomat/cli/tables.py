@@ -338,6 +338,8 @@ def print_drive_chain(axis: str, chain: dict[str, Any]) -> None:
            for k, v in chain["drive_from_motor"].items()])
     for note in chain["notes"]:
         console.print(f"  note: {note}")
+    for warning in chain.get("datasheet_warnings", []):
+        console.print(f"  [yellow]warning[/]: {warning}")
 
 
 _NUMERIC = ("mass or inertia", "ratio", "stiffness", "damping", "own f (Hz)", "coulomb (SI)", "viscous (SI)",

@@ -21,7 +21,8 @@ def drive_chain_payload(machine: "Machine", axis: str) -> dict[str, Any]:
     and ``"drive_from_motor"``: the drive's constants the motor implies
     (:func:`~sicomat.description.components.drive_defaults`), ``"drive"``: the value of each of them the
     axis's drive uses (``null`` without a drive table), ``"drive_overrides"``: the keys where the
-    drive's value is not the motor's (the file's drive key wins). Another mechanics type:
+    drive's value is not the motor's (the file's drive key wins), ``"datasheet_warnings"``: the motor's
+    values that disagree beyond half the datasheet tolerance (but within it). Another mechanics type:
     ``{"derived": false, "mechanics_type", "note"}``: it is already lumped.
     """
     from ..description.components import ComponentsSpec, drive_defaults
@@ -37,7 +38,7 @@ def drive_chain_payload(machine: "Machine", axis: str) -> dict[str, Any]:
     used = None if drive is None else {k: getattr(drive, k) for k in implied}
     overrides = [] if used is None else [k for k, v in implied.items() if used[k] != v]
     return {"derived": True, **mech.chain.to_dict(), "drive_from_motor": implied, "drive": used,
-            "drive_overrides": overrides}
+            "drive_overrides": overrides, "datasheet_warnings": mech.warnings}
 
 
 def lumped_machine(machine: "Machine") -> "Machine":
