@@ -238,6 +238,8 @@ def _sized(machine: "Machine", loop: "ServoLoop", series: "TimeSeries", verdict:
     if isinstance(mech, ComponentsSpec):
         checks += _motor_checks(mech, spec, loop, run, inertia_ratio_limit)
         checks += _train_checks(mech, run)
+        if mech.parts[0].kind == "linear-motor":
+            notes.append(_mass_ratio_note(mech))
     else:
         checks = _motorless_checks(loop, run) + checks
         notes.append(f"the mechanics is of type {mech.type!r}: the motor's and the drive train's limits need a "
@@ -304,10 +306,10 @@ def _motor_checks(mech: Any, spec: Any, loop: "ServoLoop", run: _Run, inertia_ra
                          ((m.stall_torque, "stall_torque") if m.stall_torque is not None else
                           (m.rated_torque, "rated_torque")))
     out = [_check(f"peak_{word}", run.peak(run.effort), peak_limit, effort_unit,
-                  f"max |Kt·i| over the run, against the motor's peak_{word}",
+                  f"max |kT·i| (the drive's effort) over the run, against the motor's peak_{word}",
                   missing=f"the motor gives no peak_{word}"),
            _check(f"rms_{word}", run.rms(run.effort), continuous, effort_unit,
-                  f"RMS of Kt·i over the move (t = {run.time[run.window][0]:.4g} to {run.time[run.window][-1]:.4g} s), "
+                  f"RMS of kT·i over the move (t = {run.time[run.window][0]:.4g} to {run.time[run.window][-1]:.4g} s), "
                   f"against the motor's {which}",
                   missing="the motor gives no " + ("continuous_force" if linear else "stall_torque or rated_torque"))]
     speed = run.peak(run.speed)
@@ -326,20 +328,23 @@ def _motor_checks(mech: Any, spec: Any, loop: "ServoLoop", run: _Run, inertia_ra
         out.append(_check("back_emf", math.sqrt(2.0) * ke * speed, bus, "V",
                           f"√2·kE_ll,rms·ω_max, the line-to-line peak at the top speed; {bus_note}",
                           missing="no DC bus: give the motor's dc_bus or the drive's supply_voltage"))
-    out.append(_inertia_ratio(mech, inertia_ratio_limit))
+    if not linear:
+        out.append(_inertia_ratio(mech, inertia_ratio_limit))
     return out
 
 
 def _inertia_ratio(mech: Any, limit: float) -> Check:
     m = mech.parts[0]
-    if m.kind == "linear-motor":
-        load = sum(b.value for b in mech.chain.bodies) - m.primary_mass
-        return Check("inertia_ratio", load / m.primary_mass, None, None, "1",
-                     "moved mass besides the primary / primary mass; a direct linear drive has no inertia-"
-                     "matching limit")
     total = sum(b.referred for b in mech.chain.bodies)
     return _check("inertia_ratio", (total - m.rotor_inertia) / m.rotor_inertia, limit, "1",
                   "(J at the motor shaft of everything but the rotor) / rotor_inertia")
+
+
+def _mass_ratio_note(mech: Any) -> str:
+    m = mech.parts[0]
+    load = sum(b.value for b in mech.chain.bodies) - m.primary_mass
+    return (f"inertia ratio: not a check for a direct linear drive (no inertia matching); moved mass besides the "
+            f"primary / primary mass = {load / m.primary_mass:.4g}")
 
 
 def _train_checks(mech: Any, run: _Run) -> list[Check]:
