@@ -309,3 +309,30 @@ def test_size_on_a_gcode_path(tmp_path):
     assert payload["axis"] == "Y" and payload["move"]["source"] == "gcode"
     assert payload["move"]["file"].endswith("contour.nc")
     assert next(c for c in payload["checks"] if c["name"] == "peak_current")["ok"] is True
+
+
+def test_the_inertia_ratio_does_not_depend_on_the_detail():
+    # the derived bodies of a 'full' chain (motor, coupling halves, screw split at the nut, table) referred to
+    # the motor shaft sum to the same J as the rigid lump: the hand sum, to rounding (1e-12)
+    from sicomat.tasks.size import size_axis
+
+    data = model()
+    data["axes"]["X"]["mechanics"]["detail"] = "full"
+    ratio = size_axis(machine_from_dict(data), move_mm=5.0).check("inertia_ratio")
+    assert ratio.value == pytest.approx((J_COUPLING + J_SCREW + MASS * LEAD ** 2) / J_ROTOR, rel=1e-12)
+
+
+def test_a_drive_that_saturates_fails_its_peak_current():
+    # 3 A × 1.5 N·m/A = 4.5 N·m cannot accelerate the axis at 3 m/s² against its friction (4.90 N·m): the
+    # controller asks for more current than the drive gives, and the check fails although the clipped torque
+    # stays below the motor's peak torque (a far smaller drive ends the move in a limit cycle: unstable, not sized)
+    from sicomat.tasks.size import size_axis
+
+    data = model()
+    data["axes"]["X"]["drive"]["peak_current"] = 3.0
+    result = size_axis(machine_from_dict(data))
+    assert result.verdict.stable is True
+    current = result.check("peak_current")
+    assert current.ok is False and current.value > 3.0 and current.limit == 3.0
+    assert result.check("peak_torque").value <= 3.0 * KT * (1 + 1e-9)
+    assert result.ok is False
