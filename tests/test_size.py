@@ -336,3 +336,13 @@ def test_a_drive_that_saturates_fails_its_peak_current():
     assert current.ok is False and current.value > 3.0 and current.limit == 3.0
     assert result.check("peak_torque").value <= 3.0 * KT * (1 + 1e-9)
     assert result.ok is False
+
+
+def test_a_motor_encoder_axis_without_tool_says_the_move_is_in_radians():
+    from sicomat.tasks.size import size_axis
+
+    data = model()
+    assert not any("axis coordinate" in n for n in size_axis(machine_from_dict(data), move_mm=5.0).notes)
+    del data["axes"]["X"]["tool"]
+    notes = size_axis(machine_from_dict(data), move_mm=5.0).notes
+    assert any("axis coordinate" in n and "tool = 'table'" in n for n in notes)

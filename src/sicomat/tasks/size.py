@@ -240,11 +240,29 @@ def _sized(machine: "Machine", loop: "ServoLoop", series: "TimeSeries", verdict:
         checks += _train_checks(mech, run)
         if mech.parts[0].kind == "linear-motor":
             notes.append(_mass_ratio_note(mech))
+        notes += _angle_coordinate_note(mech, spec, loop.axis)
     else:
         checks = _motorless_checks(loop, run) + checks
         notes.append(f"the mechanics is of type {mech.type!r}: the motor's and the drive train's limits need a "
                      "'components' chain with a motor part; only the drive's limits were checked")
     return SizingResult(loop.axis, _ordered(checks), verdict, move, notes=tuple(notes))
+
+
+def _angle_coordinate_note(mech: Any, spec: Any, axis: str) -> list[str]:
+    """A note when the axis coordinate is a rotation: no ``tool`` and a rotary encoder as the position sensor
+    make the move's distance, velocity and acceleration radians of the motor (the setpoint follows the sensor)."""
+    if spec.tool is not None or spec.controller is None:
+        return []
+    entry = mech.chain.sensors.get(spec.controller.position_sensor)
+    if entry is None:
+        return []
+    kinds = {b.name: b.kind for b in mech.chain.bodies}
+    if entry.get("stretch") != "rotational" and kinds.get(entry["body"]) != "rotational":
+        return []
+    table = mech.chain.bodies[-1].name
+    return [f"the axis coordinate is the angle of the position sensor {spec.controller.position_sensor!r} (no "
+            f"[axes.{axis}] tool): the move's distance and limits were read in rad, rad/s, rad/s²; set "
+            f"tool = {table!r} to move the table in metres"]
 
 
 def _linear(loop: "ServoLoop") -> bool:
