@@ -185,7 +185,7 @@ def _sized(machine: "Machine", loop: "ServoLoop", series: "TimeSeries", verdict:
     from ..description.components import ComponentsSpec
 
     mech = spec.mechanics
-    notes: list[str] = []
+    notes: list[str] = list(series.info.get("notes", []))  # what the run left out
     checks = drive_checks(loop, spec, run, mech if isinstance(mech, ComponentsSpec) else None)
     if isinstance(mech, ComponentsSpec):
         checks += motor_checks(mech, spec, loop, run, inertia_ratio_limit)
