@@ -550,6 +550,55 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
 
 @app.command()
+def size(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
+         move: Optional[float] = typer.Option(None, "--move", metavar="MM", callback=number(nonzero=True),
+                                              help="Size a trapezoidal move (mm) instead of the axis's trajectory."),
+         max_velocity: Optional[float] = typer.Option(None, "--max-velocity", metavar="M_S",
+                                                      callback=number(gt=0, unit="m/s"),
+                                                      help="Velocity limit of --move (m/s)."),
+         max_acceleration: Optional[float] = typer.Option(None, "--max-acceleration", metavar="M_S2",
+                                                          callback=number(gt=0, unit="m/s^2"),
+                                                          help="Acceleration limit of --move (m/s^2)."),
+         gcode: Optional[Path] = typer.Option(None, "--gcode", metavar="FILE", dir_okay=False,
+                                              help="Size the axis on a G-code path (the axes it moves are "
+                                                   "simulated as by simulate --gcode)."),
+         feed: Optional[float] = typer.Option(None, "--feed", metavar="MM_PER_MIN", callback=number(gt=0, unit="mm/min"),
+                                              help="Override the G-code feed rate (mm/min)."),
+         inertia_ratio_limit: float = typer.Option(10.0, "--inertia-ratio-limit", metavar="RATIO",
+                                                   callback=number(gt=0),
+                                                   help="Largest load/rotor inertia ratio accepted."),
+         set_: Optional[List[str]] = SetOption, json_: bool = JsonOption) -> None:
+    """Sizing check on the simulated controlled axis: peak and RMS motor torque (force), speed against the
+    motor and the screw, back-EMF and voltage against the bus, inertia ratio, drive-train limits. Failing
+    checks are listed first; they do not change the exit status (as tune's unmet targets), an unstable run does."""
+    with guarded(model):
+        from ..errors import ModelError
+        from ..tasks.size import size_axis
+
+        if gcode is not None and move is not None:
+            raise ModelError("--gcode cannot be combined with --move", source="options")
+        if move is None and (max_velocity is not None or max_acceleration is not None):
+            raise ModelError("--max-velocity and --max-acceleration are the limits of --move; give --move MM",
+                             source="options")
+        if gcode is None and feed is not None:
+            raise ModelError("--feed is the feed rate of a G-code path; give --gcode FILE", source="--feed", value=feed)
+        machine = load(model, set_)
+        with progress_bar() as progress:
+            result = size_axis(machine, axis, move_mm=move, max_velocity=max_velocity,
+                               max_acceleration=max_acceleration, gcode_path=gcode, feed_mm_min=feed,
+                               inertia_ratio_limit=inertia_ratio_limit, progress=progress)
+        payload = result.to_dict()
+        if json_:
+            emit_json(payload)
+        else:
+            from .tables import print_sizing, print_verdict
+
+            print_sizing(payload)
+            print_verdict(payload, "loop")
+        exit_for(payload)
+
+
+@app.command()
 def version(json_: bool = JsonOption) -> None:
     """The versions of sicomat, Python and the numerical libraries (for a bug report)."""
     from .versions import versions

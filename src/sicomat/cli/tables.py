@@ -344,3 +344,37 @@ def print_drive_chain(axis: str, chain: dict[str, Any]) -> None:
 
 _NUMERIC = ("mass or inertia", "ratio", "stiffness", "damping", "own f (Hz)", "coulomb (SI)", "viscous (SI)",
             "motor implies", "drive uses")
+
+def print_sizing(payload: dict[str, Any]) -> None:
+    """Print the checks of ``sicomat size``: failing first, then passing, then unknown (the payload's order),
+    the notes of the failing and unknown checks below the table."""
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    def cell(value: Any, unit: str) -> str:
+        if value is None:
+            return "-"
+        text = f"{value:.4g}"
+        return text + (f" ({value * 30.0 / 3.141592653589793:.4g} rpm)" if unit == "rad/s" else "")
+
+    console = Console(highlight=False)
+    verdict = {False: "[bold red]FAILED[/]", True: "[bold green]passed[/]", None: "[yellow]not all known[/]"}
+    move = payload.get("move", {})
+    what = {"trajectory": "its trajectory", "move": "the --move", "gcode": f"the G-code path {move.get('file', '')}"}
+    title = f"axis {payload['axis']}: sizing over {what.get(move.get('source', ''), 'the move')}"
+    table = Table(title=title, title_justify="left")
+    for col, justify in (("check", "left"), ("result", "left"), ("value", "right"), ("limit", "right"),
+                         ("unit", "left")):
+        table.add_column(col, justify=justify)  # type: ignore[arg-type]
+    words = {False: "[bold red]FAIL[/]", True: "[green]ok[/]", None: "[yellow]unknown[/]"}
+    for c in payload["checks"]:
+        table.add_row(c["name"], words[c["ok"]], cell(c["value"], c["unit"]), cell(c["limit"], c["unit"]), c["unit"])
+    if payload["checks"]:
+        print_table(console, table)
+    for c in payload["checks"]:      # the formulas of the passing checks are in --json and docs/components.md
+        if c["note"] and c["ok"] is not True:
+            console.print(f"  {c['name']}: {escape(c['note'])}")
+    for note in payload.get("notes", []):
+        console.print(f"  note: {escape(note)}")
+    console.print(f"sizing: {verdict[payload['ok']]}")

@@ -44,8 +44,9 @@ class Axis(Spec):
     @model_validator(mode="before")
     @classmethod
     def _drive_from_motor(cls, data: Any) -> Any:
-        """A drive-chain axis's drive takes the motor's constants it does not give (docs/components.md)."""
-        if not (isinstance(data, dict) and isinstance(data.get("drive"), dict)):
+        """A drive-chain axis's drive takes the motor's constants it does not give, and its tool is the
+        table (the load body) unless the file names one (docs/drive-chains.md)."""
+        if not isinstance(data, dict):
             return data
         mech = data.get("mechanics")
         if not (isinstance(mech, dict) and mech.get("type") == "components"):
@@ -54,6 +55,10 @@ class Axis(Spec):
             spec = ComponentsSpec.model_validate(mech)
         except ValidationError:
             return data          # the mechanics field reports it, located
+        if data.get("tool") is None:   # a motor-encoder position loop would otherwise move in motor radians
+            data = {**data, "tool": spec.chain.bodies[-1].name}
+        if not isinstance(data.get("drive"), dict):
+            return data
         drive = {**drive_defaults(spec), **data["drive"]}
         if "force_constant" not in drive:
             motor = "force_constant" if spec.parts[0].kind == "linear-motor" else "torque_constant"

@@ -54,6 +54,8 @@ def as_written(old: dict[str, Any], raw: Mapping[str, Any], machine: Machine) ->
             for i, part in enumerate(parts):
                 if isinstance(part, dict) and "id" in part and i < len(dumped):
                     dumped[i] = {k: v for k, v in dumped[i].items() if k in part}
+        if isinstance(spec, dict) and "tool" not in spec and axis in old["axes"]:
+            old["axes"][axis].pop("tool", None)      # a drive chain's implied tool (its table): written out
         drive = old["axes"].get(axis, {}).get("drive")
         if isinstance(drive, dict):
             written = _raw_drive(raw, axis)
