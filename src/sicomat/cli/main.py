@@ -79,6 +79,34 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
 
 @app.command()
+def modemap(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
+            points: int = typer.Option(21, "--points", min=2, max=2001,
+                                       help="Positions over the stroke, both ends included."),
+            modes: int = typer.Option(3, "--modes", min=1, max=1000, help="Flexible modes per position."),
+            set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
+            plot: Optional[Path] = PlotOption) -> None:
+    """Mode map of a drive-chain axis: its first flexible modes as the table travels over the stroke."""
+    with guarded(model):
+        from ..io.atomic import check_outputs
+        from ..tasks.modemap import mode_map
+
+        check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
+        machine = load(model, set_)
+        with progress_bar() as progress:
+            result = mode_map(machine, axis, points, modes, progress=progress)
+        if plot is not None:
+            from ..plots.base import save_figure
+
+            save_figure(result.plot(), plot)
+        if json_:
+            emit_json(result.to_dict())
+        else:
+            from .tables import print_mode_map
+
+            print_mode_map(result.to_dict())
+
+
+@app.command()
 def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
              duration: Optional[float] = typer.Option(None, "--duration", callback=number(gt=0, unit="s"),
                                                       help="Simulated time (s); "
@@ -275,6 +303,11 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                           help="When a notch is suggested, write and report the tuning with it."),
          write: Optional[Path] = typer.Option(None, "--write", metavar="TUNED.toml", dir_okay=False,
                                               help="Write a copy of the model with the tuned controller."),
+         all_positions: bool = typer.Option(False, "--all-positions",
+                                            help="Components axis: tune where the first mode is lowest and "
+                                                 "check the margins at every position of the mode map."),
+         points: Optional[int] = typer.Option(None, "--points", min=2, max=2001,
+                                              help="Positions checked by --all-positions (default 21)."),
          set_: Optional[List[str]] = SetOption, json_: bool = JsonOption) -> None:
     """Tune the cascade controller: frequency approach (margins, bandwidth) or time approach (steps)."""
     with guarded(model):
@@ -286,6 +319,12 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             raise ModelError("expected 'frequency' or 'time'", source="--method", value=method)
         if position_phase_margin is not None and position_crossover is not None:
             raise ModelError("give either --position-phase-margin or --position-crossover", source="options")
+        if all_positions and method != "frequency":
+            raise ModelError("--all-positions tunes with the frequency approach; leave out --method time",
+                             source="--method", value=method)
+        if points is not None and not all_positions:
+            raise ModelError("--points sets the positions of --all-positions; add --all-positions", source="--points",
+                             value=points)
         from ..io.atomic import check_outputs
 
         check_outputs({"--write": (write, "model")}, {"the model file": model})
@@ -307,8 +346,16 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                     position_phase_margin=None if position_crossover is not None
                                     else (position_phase_margin if position_phase_margin is not None else 80.0),
                                     position_crossover=position_crossover, min_gain_margin=min_gain_margin)
+            over = None
             with progress_bar() as progress:
-                result = tune_frequency(servo, targets, progress=progress)
+                if all_positions:
+                    from ..tasks.tune_positions import tune_over_stroke
+
+                    over = tune_over_stroke(machine, servo.axis, targets, points=points or 21,
+                                            apply_notch=apply_notch, progress=progress)
+                    result = over.result
+                else:
+                    result = tune_frequency(servo, targets, progress=progress)
             chosen = result.with_notch if apply_notch and result.with_notch is not None else result
             payload = {"method": "frequency", **chosen.to_dict()}
             if chosen is not result:
@@ -317,6 +364,8 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             elif result.with_notch is not None and result.with_notch.targets_met:
                 payload["warnings"].append("the suggested notch would meet the targets: --apply-notch")
             payload["wall_time_s"] = result.wall_time_s
+            if over is not None:
+                over.update_payload(payload)
             t = chosen.tuned
             gains = {"Kp": t.Kp, "Kp_normalized": t.Kp_normalized, "Ti": t.Ti, "Kv": t.Kv}
             notch = result.notch if chosen is not result else None
@@ -329,6 +378,10 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             from .tables import print_tuning, print_verdict
 
             print_tuning(servo.axis, payload)
+            if "positions" in payload:
+                from .tables import print_stroke_tuning
+
+                print_stroke_tuning(payload)
             print_verdict(payload, "tuned loop")
         exit_for(payload)
 

@@ -289,3 +289,56 @@ def print_reduction(payload: dict[str, Any]) -> None:
     console.print("  frequencies of the reduced model (Hz): " + ", ".join(f"{f:.4g}" for f in freqs))
     if payload.get("written"):
         console.print(f"  written: {payload['written']}")
+
+
+def print_mode_map(payload: dict[str, Any]) -> None:
+    """Print the mode map of ``sicomat modemap``: one row per position, the worst one marked."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(highlight=False)
+    table = Table(title=f"axis {payload['axis']}: flexible modes over the stroke "
+                        f"({payload['stroke'] * 1e3:.6g} mm)", title_justify="left")
+    table.add_column("position (mm)", justify="right")
+    for k in range(payload["modes"]):
+        table.add_column(f"f{k + 1} (Hz)", justify="right")
+    table.add_column("")
+    worst = payload["worst_position"]
+    for x, row in zip(payload["position"], payload["frequencies_hz"]):
+        mark = "worst (lowest f1)" if x == worst else ""
+        cells = ["-" if f is None else f"{f:.4f}" for f in row]
+        table.add_row(f"{x * 1e3:.6g}", *cells, mark, style="bold red" if mark else None)
+    print_table(console, table)
+    if worst is not None:
+        console.print(f"lowest first mode {payload['lowest_first_mode_hz']:.4g} Hz at {worst * 1e3:.6g} mm")
+    for note in payload.get("notes", []):
+        console.print(f"note: {note}", markup=False)
+
+
+def print_stroke_tuning(payload: dict[str, Any]) -> None:
+    """Print the margins of ``sicomat tune --all-positions`` at every position, the worst marked."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(highlight=False)
+    table = Table(title=f"tuned at {payload['tuned_position'] * 1e3:.6g} mm (lowest first mode); margins over "
+                        "the stroke", title_justify="left")
+    for col in ("position (mm)", "f1 (Hz)", "vel. PM (°)", "vel. GM (dB)", "pos. PM (°)", "pos. GM (dB)",
+                "stable", "smallest"):
+        table.add_column(col, justify="right")
+
+    def cell(value: Any, fmt: str) -> str:
+        return "-" if value is None else format(value, fmt)
+
+    for p in payload["positions"]:
+        marks = [m for m, at in (("PM", payload["worst_position"]), ("GM", payload["min_gain_margin_position"]))
+                 if p["position"] == at]
+        stable = {True: "yes", False: "NO", None: "?"}[p["stable"]]
+        table.add_row(f"{p['position'] * 1e3:.6g}", cell(p["first_mode_hz"], ".4g"),
+                      cell(p["velocity_phase_margin_deg"], ".2f"), cell(p["velocity_gain_margin_db"], ".2f"),
+                      cell(p["position_phase_margin_deg"], ".2f"), cell(p["position_gain_margin_db"], ".2f"),
+                      stable, ", ".join(marks), style="bold" if marks else None)
+    print_table(console, table)
+    console.print(f"  smallest velocity phase margin {cell(payload['min_phase_margin_deg'], '.2f')}° at "
+                  f"{payload['worst_position'] * 1e3:.6g} mm; smallest gain margin "
+                  f"{cell(payload['min_gain_margin_db'], '.2f')} dB at {payload['min_gain_margin_position'] * 1e3:.6g} mm")
