@@ -80,9 +80,10 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
 @app.command()
 def modemap(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
-            points: int = typer.Option(21, "--points", min=2, max=2001,
+            points: int = typer.Option(21, "--points", min=2, max=2001, metavar="N",
                                        help="Positions over the stroke, both ends included."),
-            modes: int = typer.Option(3, "--modes", min=1, max=1000, help="Flexible modes per position."),
+            modes: int = typer.Option(3, "--modes", min=1, max=1000, metavar="M",
+                                      help="Flexible modes per position."),
             set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
             plot: Optional[Path] = PlotOption) -> None:
     """Mode map of a drive-chain axis: its first flexible modes as the table travels over the stroke."""
@@ -306,7 +307,7 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
          all_positions: bool = typer.Option(False, "--all-positions",
                                             help="Components axis: tune where the first mode is lowest and "
                                                  "check the margins at every position of the mode map."),
-         points: Optional[int] = typer.Option(None, "--points", min=2, max=2001,
+         points: Optional[int] = typer.Option(None, "--points", min=2, max=2001, metavar="N",
                                               help="Positions checked by --all-positions (default 21)."),
          set_: Optional[List[str]] = SetOption, json_: bool = JsonOption) -> None:
     """Tune the cascade controller: frequency approach (margins, bandwidth) or time approach (steps)."""
