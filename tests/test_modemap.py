@@ -256,6 +256,10 @@ def test_an_end_with_a_body_less_pads_with_null(tmp_path):
     payload = result.to_dict()
     assert result.modes == 3
     assert payload["frequencies_hz"][0][2] is None and None not in payload["frequencies_hz"][1]
+    assert any(note.startswith("position 0 m: 2 of 3 flexible modes") for note in result.notes)
+    two = first_modes(screw_model(tmp_path), points=21, modes=2)      # two columns: nothing missing
+    assert two.frequencies_hz.shape == (21, 2) and not two.notes
+    assert_allclose(two.frequencies_hz, result.frequencies_hz[:, :2], rtol=0)
     near = first_modes(screw_model(tmp_path), points=2001).frequencies_hz[1, :2]     # x = 0.6 mm
     # continuity: 0.6 mm of 1.2 m moves f1, f2 by well under 1 %
     assert_allclose(result.frequencies_hz[0, :2], near, rtol=1e-2)

@@ -181,11 +181,13 @@ def mode_map(machine: "Machine", axis: str | None = None, points: int = 21, mode
     table = np.full((points, width), np.nan)
     for i, row in enumerate(rows):
         table[i, :len(row)] = row
+    why = ("a spring of infinite stiffness there, e.g. a screw segment or belt span of zero length, or one that "
+           "detail 'auto' made rigid there" if getattr(machine.axes[name].mechanics, "detail", None) == "auto" else
+           "a spring of infinite stiffness there, e.g. a screw segment or belt span of zero length")
     for x, row in zip(positions, rows):
         if 0 < len(row) < width:
-            notes.append(f"position {x:g} m: {len(row)} of {width} flexible modes (a spring of infinite stiffness "
-                         "there, e.g. a screw segment or belt span of zero length: the chain has a body less; "
-                         "the missing frequencies are null)")
+            notes.append(f"position {x:g} m: {len(row)} of {width} flexible modes ({why}: the chain has a body "
+                         "less; the missing frequencies are null)")
         elif not row:
             notes.append(f"position {x:g} m: no flexible mode (every compliance of the chain is infinite there; "
                          "the frequencies are null)")
