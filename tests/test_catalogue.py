@@ -72,7 +72,9 @@ def test_every_shipped_entry_loads_and_validates():
 def test_shipped_motors_are_self_consistent():
     # a sinusoidal PM motor with kT per A rms and kE line-to-line rms: kT = sqrt(3) kE (power balance
     # 3 E_ph I = T w); the stall point I0 kT = M0. The files state both to 4-5 significant digits: 1e-3.
-    motors = [e.parameters for e in load_catalogue() if e.kind == "motor"]
+    # (the typical entries, written to satisfy them; datasheet entries state only what their document
+    # states and are checked within the datasheet tolerance below)
+    motors = [e.parameters for e in load_catalogue() if e.kind == "motor" and e.provenance.source == "typical"]
     assert motors
     for m in motors:
         assert isinstance(m, MotorParameters)
@@ -177,7 +179,8 @@ def test_filters_compare_si_values_with_units():
     in_ncm = {e.id for e in catalogue.select("motor", ["peak_torque >= 1000 N*cm"])}
     assert in_nm == in_ncm
     motors = [e for e in catalogue if e.kind == "motor"]
-    assert in_nm == {e.id for e in motors if e.parameters.peak_torque >= 10.0}   # type: ignore[attr-defined]
+    assert in_nm == {e.id for e in motors if e.parameters.peak_torque is not None   # type: ignore[attr-defined]
+                     and e.parameters.peak_torque >= 10.0}                          # type: ignore[attr-defined]
     assert 0 < len(in_nm) < len(motors)
     # leads in mm; a word compared with ==; filters combine (and)
     screws = catalogue.select("ball-screw", ["lead > 5 mm", "mounting == fixed-fixed"])

@@ -10,7 +10,25 @@ from typing import Any, Callable, Mapping
 from ..errors import ModelError
 from .store import Catalogue, load_catalogue
 
-__all__ = ["resolve_parts", "uses_catalogue"]
+__all__ = ["resolve_parts", "uses_catalogue", "use_folders", "user_folders", "default_catalogue"]
+
+_FOLDERS: list[str] = []
+
+
+def use_folders(folders: "list[str] | tuple[str, ...]") -> None:
+    """User catalogue folders that model files read after the shipped catalogue and ``SICOMAT_CATALOG``
+    (the CLI's ``sicomat --catalog DIR``): later folders shadow earlier ones, as in :func:`load_catalogue`."""
+    _FOLDERS[:] = [str(f) for f in folders]
+
+
+def user_folders() -> list[str]:
+    """The folders given to :func:`use_folders`."""
+    return list(_FOLDERS)
+
+
+def default_catalogue() -> Catalogue:
+    """The catalogue model files' ids are looked up in: shipped, ``SICOMAT_CATALOG``, :func:`use_folders`."""
+    return load_catalogue(_FOLDERS)
 
 
 def _component_parts(data: Mapping[str, Any]):
@@ -40,7 +58,8 @@ def resolve_parts(data: Mapping[str, Any], catalogue: Catalogue | Callable[[], C
     data : mapping
         A model file as read (plain TOML data).
     catalogue : Catalogue or callable, optional
-        Where ids are looked up (default: the shipped catalogue and the folders of ``SICOMAT_CATALOG``);
+        Where ids are looked up (default: :func:`default_catalogue`, the shipped catalogue, the folders of
+        ``SICOMAT_CATALOG`` and those of ``sicomat --catalog``);
         a callable is called only if some part names an id.
 
     Raises
@@ -53,7 +72,7 @@ def resolve_parts(data: Mapping[str, Any], catalogue: Catalogue | Callable[[], C
     if not found:
         return dict(data)
     if catalogue is None:
-        catalogue = load_catalogue
+        catalogue = default_catalogue
     cat = catalogue() if callable(catalogue) else catalogue
     out = dict(data)
     out["axes"] = dict(out["axes"])

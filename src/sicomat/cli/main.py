@@ -30,8 +30,16 @@ def _print_version(value: bool) -> None:
 
 @app.callback()
 def _root(version: bool = typer.Option(False, "--version", is_eager=True, callback=_print_version,
-                                       help="Print the version of sicomat and exit.")) -> None:
+                                       help="Print the version of sicomat and exit."),
+          catalog: Optional[List[Path]] = typer.Option(
+              None, "--catalog", metavar="DIR",
+              help="A folder of catalogue entries that model files' part ids are looked up in, after the "
+                   "shipped catalogue and SICOMAT_CATALOG (repeatable; put it before the command: "
+                   "sicomat --catalog DIR modal MODEL).")) -> None:
     """SICOMAT: simulation and control analysis of machine-tool feed axes."""
+    from ..catalogue.resolve import use_folders
+
+    use_folders([str(c) for c in catalog or ()])
 
 
 @app.command()

@@ -11,6 +11,8 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
+import numpy as np
+
 from . import drivetrain as dt
 from .base import fail
 from .mechanics import LumpedSpec
@@ -72,6 +74,7 @@ class ChainModel:
     stroke: float | None
     detail: str
     notes: list[str] = field(default_factory=list)
+    home: dict[str, str] = field(default_factory=dict)   # body of the walk → the body it ended up in
     lumped: LumpedSpec = field(init=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -243,20 +246,22 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
     for j, body in enumerate(b.bodies):   # a body no part named: after its spring
         if not body.name:
             body.name = b.unique(f"{b.springs[j - 1].name}_out" if j else "motor")
-    for up, s in zip(b.bodies, b.springs):
-        s.between = (s.between[0], b.bodies[b.bodies.index(up) + 1].name)
+    for j, s in enumerate(b.springs):       # spring j joins bodies j and j + 1 of the walk
+        s.between = (b.bodies[j].name, b.bodies[j + 1].name)
     # encoder inertias
     for i, p, mark in sensor_at:
         if mark == "pending-inertia":
             host = b.bodies[0] if p.mounting == "motor" else _last_rotational(b.bodies)
             host.value += p.inertia
             host.parts.append(f"{label[i]}: encoder {_qty(p.inertia, 'kg*m^2')}")
-    chain = ChainModel(b.bodies, b.springs, frictions, sensors, {}, x, stroke, spec.detail)
+    chain = ChainModel(b.bodies, b.springs, frictions, sensors, {}, x, stroke, spec.detail,
+                       home={body.name: body.name for body in b.bodies})
+    hosts = [(i, p, *_host(b.bodies, p)) for i, p, _ in sensor_at]   # where each sensor reads, before merging
     _guides(spec, chain, label)
     _massless(chain)
     _reduce(spec, chain)
     _damp(spec, chain)
-    _sensors(spec, chain, sensor_at, label)
+    _sensors(spec, chain, hosts)
     chain.actuator = {"body": chain.bodies[0].name if not linear else chain.bodies[-1].name}
     motor_body = chain.bodies[0]
     if not linear and motor_body.kind == "translational":    # the whole chain lumped into the load
@@ -267,6 +272,15 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
 
 def _last_rotational(bodies: list[ChainBody]) -> ChainBody:
     return [b for b in bodies if b.kind == "rotational"][-1]
+
+
+def _host(bodies: list[ChainBody], part: Any) -> tuple[str, float]:
+    """The body a sensor part reads (name, gain) in the chain as walked: an encoder the motor (or, mounted
+    at the load, the last rotating body), a scale the table."""
+    if part.kind == "scale" or not any(b.kind == "rotational" for b in bodies):
+        return bodies[-1].name, bodies[-1].gain
+    host = bodies[0] if part.mounting == "motor" else _last_rotational(bodies)
+    return host.name, host.gain
 
 
 def _guides(spec: "ComponentsSpec", chain: ChainModel, label: dict[int, str]) -> None:
@@ -304,6 +318,7 @@ def _merge(chain: ChainModel, k: int, reason: str) -> None:
         prev.stiffness /= spring.ratio ** 2
         if prev.damping is not None:
             prev.damping /= spring.ratio ** 2
+    chain.home = {walked: (down.name if now == up.name else now) for walked, now in chain.home.items()}
     chain.notes.append(f"{spring.name} made rigid ({reason}): {up.name} lumped into {down.name}")
 
 
@@ -363,9 +378,11 @@ def _two_mass(chain: ChainModel) -> None:
     j_motor, j_load = first.referred, last.referred
     parts_motor, parts_load = list(first.parts), list(last.parts)
     c = 0.0
+    side: dict[str, str] = {}
     for k, body in enumerate(chain.bodies[1:-1], start=1):
         c += compliances[k - 1]
         share = c / total
+        side[body.name] = first.name if share < 0.5 else last.name
         j_motor += (1.0 - share) * body.referred
         j_load += share * body.referred
         parts_motor.append(f"{body.name}: {1 - share:.4f} of {body.referred:.6g} kg*m^2 (referred)")
@@ -377,45 +394,66 @@ def _two_mass(chain: ChainModel) -> None:
     chain.bodies = [ChainBody(first.name, first.kind, j_motor / first.gain ** 2, first.gain, parts_motor),
                     ChainBody(last.name, last.kind, j_load / gain ** 2, gain, parts_load)]
     chain.springs = [spring]
+    chain.home = {walked: side.get(now, now) for walked, now in chain.home.items()}
     for fr in chain.frictions.values():
         fr["between"][0] = last.name
     chain.notes.append(f"detail '2-mass': {', '.join(names)} in series as one spring")
 
 
 def _damp(spec: "ComponentsSpec", chain: ChainModel) -> None:
-    for k, s in enumerate(chain.springs):
+    """A spring without a damping of its own gets a loss proportional to its stiffness, ``c = 2ζ·k/ω``,
+    ``ω`` the frequency of the chain's mode whose strain energy lies most in that spring: that mode then
+    has the damping ratio ζ (the others a little more or less, by ``ω_i/ω`` times their share of strain
+    in the spring; docs/components.md). Modes of the undamped chain in the motor's coordinate."""
+    if not chain.springs:
+        return
+    j = np.array([b.referred for b in chain.bodies])
+    k = np.array([_referred_stiffness(chain, i) for i in range(len(chain.springs))])
+    n = len(j)
+    stiff = np.zeros((n, n))
+    for i, ki in enumerate(k):
+        stiff[i:i + 2, i:i + 2] += ki * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    scale = 1.0 / np.sqrt(j)
+    w2, v = np.linalg.eigh(scale[:, None] * stiff * scale[None, :])
+    shapes = scale[:, None] * v                      # mass-normalised mode shapes, columns
+    strain = k[:, None] * (shapes[:-1, :] - shapes[1:, :]) ** 2   # spring × mode
+    omega = np.sqrt(np.clip(w2, 0.0, None))
+    flexible = omega > 1e-6 * omega.max()
+    for i, s in enumerate(chain.springs):
         if s.damping is not None and chain.detail != "2-mass":
             continue
-        ja = sum(b.referred for b in chain.bodies[: k + 1])
-        jb = sum(b.referred for b in chain.bodies[k + 1:])
-        reduced = ja * jb / (ja + jb) / chain.bodies[k + 1].gain ** 2   # in the spring's coordinate
-        s.damping = 2.0 * spec.damping_ratio * math.sqrt(s.stiffness * reduced)
-        s.rule += f"; damping 2ζ√(k·m), ζ = {spec.damping_ratio:g}"
+        share = np.where(flexible, strain[i] / np.where(flexible, strain.sum(axis=0), 1.0), -1.0)
+        w = float(omega[int(np.argmax(share))])
+        s.damping = 2.0 * spec.damping_ratio * s.stiffness / w
+        s.rule += f"; damping 2ζ·k/ω, ζ = {spec.damping_ratio:g}, ω = 2π·{w / (2 * math.pi):.6g} Hz (its mode)"
 
 
-def _sensors(spec: "ComponentsSpec", chain: ChainModel, sensor_at: list[tuple[int, Any, str]],
-             label: dict[int, str]) -> None:
-    motor_body = chain.bodies[0]
-    load = chain.bodies[-1]
+def _sensors(spec: "ComponentsSpec", chain: ChainModel, hosts: list[tuple[int, Any, str, float]]) -> None:
+    """Sensors on the bodies they ended up in: a sensor whose body was lumped into another reads through
+    the rigid ratio between them (``ratio``, and ``stretch = "rotational"`` for an encoder on a
+    translating body)."""
+    bodies = {b.name: b for b in chain.bodies}
     linear = spec.parts[0].kind == "linear-motor"
     have_encoder = False
-    for i, p, _ in sensor_at:
+
+    def geared(walked: str, gain: float, own: str) -> dict[str, Any]:
+        host = bodies[chain.home[walked]]
+        entry: dict[str, Any] = {"body": host.name}
+        if host.kind != own or abs(gain / host.gain - 1.0) > 1e-15:
+            entry.update(ratio=gain / host.gain, stretch=own)
+        return entry
+
+    for _, p, walked, gain in hosts:
         if p.kind == "encoder":
             have_encoder = True
-            host = motor_body if p.mounting == "motor" else (_last_rotational(chain.bodies)
-                                                            if any(b.kind == "rotational" for b in chain.bodies)
-                                                            else load)
-            entry: dict[str, Any] = {"body": host.name, "counts_per_revolution": p.resolution}
-            if host.kind == "translational":
-                entry.update(ratio=1.0 / host.gain, stretch="rotational")
+            entry = {**geared(walked, gain, "rotational"), "counts_per_revolution": p.resolution}
             chain.sensors[p.name or _free(chain.sensors, "encoder")] = entry
         else:
-            chain.sensors[p.name or _free(chain.sensors, "scale")] = {"body": load.name, "resolution": p.resolution}
+            entry = {**geared(walked, gain, "translational"), "resolution": p.resolution}
+            chain.sensors[p.name or _free(chain.sensors, "scale")] = entry
     if not linear and not have_encoder:
-        entry = {"body": motor_body.name}
-        if motor_body.kind == "translational":
-            entry.update(ratio=1.0 / motor_body.gain, stretch="rotational")
-        chain.sensors[_free(chain.sensors, "encoder")] = entry
+        motor = next(iter(chain.home))
+        chain.sensors[_free(chain.sensors, "encoder")] = geared(motor, 1.0, "rotational")
         chain.notes.append("no encoder part: sensor 'encoder' reads the motor shaft (no quantization)")
 
 

@@ -37,7 +37,7 @@ _STAGE_WORDS = {0: "the motor", 1: "couplings and gearboxes", 2: "the transmissi
 
 def _part_class(kind: str, params: type[Spec]) -> type[Spec]:
     title = "".join(w.capitalize() for w in kind.split("-")) + "Part"
-    return create_model(title, __base__=params, __doc__=f"A ``{kind}`` part of a drive chain.",
+    return create_model(title, __base__=params, __doc__=f"A ``{kind}`` part of a drive chain.", __module__=__name__,
                         kind=(Literal[kind], ...),  # type: ignore[arg-type]
                         id=(Annotated[str, Field(min_length=1)] | None, None),
                         name=(Name | None, None))
@@ -45,6 +45,7 @@ def _part_class(kind: str, params: type[Spec]) -> type[Spec]:
 
 PART_CLASSES: dict[str, type[Spec]] = {kind: _part_class(kind, params) for kind, params in KINDS.items()}
 """Kind → the part schema: the kind's parameters (:mod:`.parts`) plus ``kind``, ``id`` and ``name``."""
+globals().update({cls.__name__: cls for cls in PART_CLASSES.values()})   # importable by name: they pickle
 if TYPE_CHECKING:   # the parts' classes are made at import; a type checker sees them as Any
     Part = Any
 else:
@@ -102,14 +103,31 @@ class ComponentsSpec(Spec):
                        "(Hz, e.g. the velocity loop's)", "bandwidth", None)
         _check_needed(self)
         _check_datasheets(self)
-        chain = derive(self)      # the position inside the stroke, positive stiffnesses
-        object.__setattr__(self, "_chain", chain)
+        self._remember(derive(self))     # the position inside the stroke, positive stiffnesses
         return self
+
+    def _key(self) -> tuple[Any, ...]:
+        """What the derived chain depends on: the parts are frozen, so their identities stand for them
+        (``model_copy(update=...)`` makes a new key and the chain is derived again)."""
+        return (self.position, self.detail, self.bandwidth, self.bandwidth_multiple, self.damping_ratio,
+                tuple(map(id, self.parts)))
+
+    def _remember(self, chain: ChainModel) -> ChainModel:
+        object.__setattr__(self, "_chain_cache", (self._key(), chain))
+        return chain
+
+    @property
+    def warnings(self) -> list[str]:
+        """Datasheet values that disagree by more than half the tolerance (but within it)."""
+        return list(self._warnings)  # type: ignore[attr-defined]
 
     @property
     def chain(self) -> ChainModel:
         """What the lowering derived: bodies, springs, sensors, with their sources."""
-        return self._chain  # type: ignore[attr-defined]
+        key, chain = getattr(self, "_chain_cache", (None, None))
+        if key == self._key() and isinstance(chain, ChainModel):
+            return chain
+        return self._remember(derive(self))
 
     def to_lumped(self) -> LumpedSpec:
         """The chain as a :class:`~sicomat.description.mechanics.LumpedSpec`."""
@@ -200,20 +218,30 @@ def _check_needed(spec: ComponentsSpec) -> None:
 
 
 def _check_datasheets(spec: ComponentsSpec) -> None:
-    """Refuse a motor whose datasheet values disagree beyond ``datasheet_tolerance`` (kT ≈ √3·kE, M0 = I0·kT)."""
+    """Refuse a motor whose datasheet values disagree beyond ``datasheet_tolerance`` (kT ≈ √3·kE,
+    T_mech = 3·R·J/kT², M0 = I0·kT); a disagreement beyond half of it is kept as a warning
+    (:attr:`ComponentsSpec.warnings`, shown by ``sicomat check``)."""
+    found: list[str] = []
+    keys = {"kT_kE": "back_emf_constant", "T_mech": "mechanical_time_constant", "M0": "stall_torque"}
     for i, part in enumerate(spec.parts):
         if part.kind != "motor" or part.torque_constant is None:
             continue
-        for w in mc.datasheet_warnings(**motor_constants(part), tolerance=spec.datasheet_tolerance):
-            key = "back_emf_constant" if w.name == "kT_kE" else "stall_torque"
+        constants = motor_constants(part)
+        for w in mc.datasheet_warnings(**constants, tolerance=spec.datasheet_tolerance):
+            key = keys[w.name]
             raise fail("inconsistent datasheet values: {text}; fix the values or their bases, or widen "
                        "'datasheet_tolerance' if the datasheet really says so", f"parts.{i}.{key}",
                        getattr(part, key), text=w.message)
+        for w in mc.datasheet_warnings(**constants, tolerance=spec.datasheet_tolerance / 2):
+            found.append(f"parts.{i}.{keys[w.name]}: {w.message.split(' (check')[0]} (within the "
+                         f"{spec.datasheet_tolerance:g} tolerance)")
+    object.__setattr__(spec, "_warnings", found)
 
 
 def motor_constants(motor: Any) -> dict[str, Any]:
     """A rotary motor part's constants in the checks' conventions: ``torque_constant`` per A rms,
-    ``back_emf_constant`` line-to-line rms (V·s/rad), ``phase_resistance``, ``stall_current`` (A rms,
+    ``back_emf_constant`` line-to-line rms (V·s/rad), ``phase_resistance``, ``mechanical_time_constant``,
+    ``stall_current`` (A rms,
     the currents read in the torque constant's basis), ``stall_torque``, ``rotor_inertia``."""
     kt = mc.torque_constant_rms(motor.torque_constant, motor.torque_constant_basis)
     scale = math.sqrt(0.5) if motor.torque_constant_basis == "peak" else 1.0   # current values to A rms
@@ -222,6 +250,8 @@ def motor_constants(motor: Any) -> dict[str, Any]:
         out["back_emf_constant"] = mc.back_emf_line_rms(motor.back_emf_constant, motor.back_emf_basis)
     if motor.resistance is not None:
         out["phase_resistance"] = mc.phase_resistance(motor.resistance, motor.resistance_basis)
+    if motor.mechanical_time_constant is not None:
+        out["mechanical_time_constant"] = motor.mechanical_time_constant
     if motor.stall_current is not None and motor.stall_torque is not None:
         out["stall_current"] = motor.stall_current * scale
         out["stall_torque"] = motor.stall_torque

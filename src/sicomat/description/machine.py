@@ -54,7 +54,12 @@ class Axis(Spec):
             spec = ComponentsSpec.model_validate(mech)
         except ValidationError:
             return data          # the mechanics field reports it, located
-        return {**data, "drive": {**drive_defaults(spec), **data["drive"]}}
+        drive = {**drive_defaults(spec), **data["drive"]}
+        if "force_constant" not in drive:
+            motor = "force_constant" if spec.parts[0].kind == "linear-motor" else "torque_constant"
+            raise fail(f"missing: give the drive's force_constant, or the motor part's {motor} (and its basis) "
+                       "that it is taken from", "drive.force_constant", None)
+        return {**data, "drive": drive}
 
     @model_validator(mode="after")
     def _references(self) -> "Axis":

@@ -95,6 +95,7 @@ ForceConstant = Annotated[float, _parse("force_constant"), Field(gt=0), _dim("fo
 RotaryEmf = Annotated[float, _parse("rotary_emf"), Field(gt=0), _dim("rotary_emf")]
 LinearEmf = Annotated[float, _parse("linear_emf"), Field(gt=0), _dim("linear_emf")]
 Fraction = Annotated[float, _parse("fraction"), Field(gt=0, le=1), _dim("fraction")]
+TimeConstant = Annotated[float, _parse("time"), Field(gt=0), _dim("time")]
 SpecificStiffness = Annotated[float, _parse("specific_stiffness"), Field(gt=0), _dim("specific_stiffness")]
 MassPerLength = Annotated[float, _parse("mass_per_length"), Field(gt=0), _dim("mass_per_length")]
 Density = Annotated[float, _parse("density"), Field(gt=0), _dim("density")]
@@ -141,6 +142,7 @@ class MotorParameters(Spec):
     dc_bus: Optional[Voltage] = None
     mass: Optional[Mass] = None
     shaft_torsional_stiffness: Optional[TorsionalStiffness] = None
+    mechanical_time_constant: Optional[TimeConstant] = None
 
     @model_validator(mode="after")
     def _conventions(self) -> "MotorParameters":
