@@ -23,7 +23,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
     from ..tuning.frequency import TuningResult, TuningTargets
 
-__all__ = ["PositionMargins", "StrokeTuning", "tune_over_stroke", "position_margins"]
+__all__ = ["PositionMargins", "StrokeTuning", "tune_over_stroke", "position_margins", "ROUNDS"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,19 @@ class PositionMargins:
         """The smaller gain margin of the two loops (as ``tune``'s ``achieved.gain_margin_db``)."""
         return min(self.velocity_gain_margin_db, self.position_gain_margin_db)
 
+    def shortfall(self, targets: "TuningTargets") -> float:
+        """How far the worst margin here falls short of its target, relative to it (``(target − value)/target``,
+        the largest over the velocity and position phase margins and the gain margin; negative when every
+        margin is above its target; infinite when the loop is unstable)."""
+        if self.stable is False:
+            return math.inf
+        terms = [(targets.velocity_phase_margin - self.velocity_phase_margin_deg) / targets.velocity_phase_margin,
+                 (targets.min_gain_margin - self.gain_margin_db) / targets.min_gain_margin]
+        if targets.position_phase_margin is not None:
+            terms.append((targets.position_phase_margin - self.position_phase_margin_deg) / targets.position_phase_margin)
+        terms = [t if not math.isnan(t) else math.inf for t in terms]
+        return max(terms)
+
     def to_dict(self) -> dict[str, Any]:
         """One entry of ``"positions"``."""
         return {"position": self.position, "first_mode_hz": self.first_mode_hz,
@@ -77,6 +90,18 @@ class StrokeTuning:
     map: ModeMap
     tuned_position: float
     positions: tuple[PositionMargins, ...]
+    attempts: tuple["StrokeTuning", ...] = ()
+
+    @property
+    def shortfall(self) -> float:
+        """The largest relative shortfall of a margin over the positions (:meth:`PositionMargins.shortfall`):
+        what the choice between attempts minimises."""
+        return max(p.shortfall(self.chosen.targets) for p in self.positions)
+
+    @property
+    def shortest(self) -> PositionMargins:
+        """The position whose margins fall shortest of their targets."""
+        return max(self.positions, key=lambda p: p.shortfall(self.chosen.targets))
 
     def _lowest(self, key) -> PositionMargins:
         values = [p for p in self.positions if math.isfinite(key(p))]
@@ -124,7 +149,11 @@ class StrokeTuning:
     def to_dict(self) -> dict[str, Any]:
         """The keys ``tune --all-positions`` adds to the ``tune`` payload."""
         worst, low_gm = self.worst, self.lowest_gain_margin
-        return {"tuned_position": self.tuned_position, "positions": [p.to_dict() for p in self.positions],
+        attempts = [{"tuned_position": a.tuned_position, "shortfall": _finite(a.shortfall), "stable": a.stable,
+                     "unmet": len(a.unmet), "chosen": a.tuned_position == self.tuned_position}
+                    for a in (self.attempts or (self,))]
+        return {"tuned_position": self.tuned_position, "attempts": attempts,
+                "positions": [p.to_dict() for p in self.positions],
                 "worst_position": worst.position, "min_phase_margin_deg": _finite(worst.phase_margin_deg),
                 "min_gain_margin_db": _finite(low_gm.gain_margin_db), "min_gain_margin_position": low_gm.position,
                 "lowest_first_mode_hz": self.map.lowest_first_mode_hz,
@@ -157,32 +186,57 @@ def position_margins(loop: "ServoLoop", position: float, first_mode_hz: float | 
                            tuple(payload["warnings"]))
 
 
+ROUNDS = 3
+"""Most positions ``tune --all-positions`` tunes at (the softest first, then where the margins fell shortest)."""
+
+
 def tune_over_stroke(machine: "Machine", axis: str | None, targets: "TuningTargets | None" = None, *,
-                     points: int = 21, apply_notch: bool = False,
+                     points: int = 21, apply_notch: bool = False, rounds: int = ROUNDS,
                      progress: "ProgressCallback | None" = None) -> StrokeTuning:
-    """Tune the axis (frequency approach) at its mode map's worst position, then analyse the tuned loop at
-    every mapped position.
+    """Tune the axis (frequency approach) where its margins hold over the stroke.
+
+    First at the mode map's worst position (lowest first mode), then the tuned loop is analysed at every
+    mapped position. If a margin falls short somewhere, the tuning is repeated with the table where the
+    margins fell shortest (the same targets, the velocity crossover that of the first tuning), up to
+    ``rounds`` positions; of these attempts the one whose worst relative shortfall over the stroke is
+    smallest is returned (:attr:`StrokeTuning.shortfall`; the first on a tie), with all attempts in
+    :attr:`StrokeTuning.attempts`.
 
     ``apply_notch``: when the tuning suggests a notch, check (and report) the tuning with it, as
     ``tune --apply-notch`` does.
     """
+    modes = mode_map(machine, axis, points, progress=progress)
+    at = modes.worst_position
+    if at is None:  # pragma: no cover - mode_map raises when no position has a flexible mode
+        at = float(modes.position[0])
+    attempts: list[StrokeTuning] = []
+    while True:
+        attempt = _attempt(machine, modes, at, targets, apply_notch, progress)
+        attempts.append(attempt)
+        targets = attempt.result.targets            # the resolved targets: the first tuning's crossover
+        at = attempt.shortest.position
+        if not attempt.unmet or len(attempts) >= rounds or at in [a.tuned_position for a in attempts]:
+            break
+    best = min(attempts, key=lambda a: a.shortfall)       # min keeps the first of equals
+    return replace(best, attempts=tuple(attempts))
+
+
+def _attempt(machine: "Machine", modes: ModeMap, at: float, targets: "TuningTargets | None", apply_notch: bool,
+             progress: "ProgressCallback | None") -> StrokeTuning:
+    """Tune with the table at ``at``, then analyse the tuned loop at every position of ``modes``."""
     from ..servo.loop import build_servo_loop
     from ..tuning.frequency import tune_frequency
 
-    modes = mode_map(machine, axis, points, progress=progress)
     name = modes.axis
-    tuned_at = modes.worst_position
-    if tuned_at is None:  # pragma: no cover - mode_map raises when no position has a flexible mode
-        tuned_at = float(modes.position[0])
-    result = tune_frequency(build_servo_loop(machine_at(machine, name, tuned_at), name), targets, progress=progress)
+    result = tune_frequency(build_servo_loop(machine_at(machine, name, at), name), targets, progress=progress)
     chosen = result.with_notch if apply_notch and result.with_notch is not None else result
     gains, controller = chosen.tuned, chosen.loop.controller
     checked = []
-    task = f"margins at {len(modes.position)} positions"
+    task = f"margins at {len(modes.position)} positions (tuned at {at:g} m)"
     notify(progress, task, 0, len(modes.position))
     for i, (x, row) in enumerate(zip(modes.position, modes.frequencies_hz)):
         loop = build_servo_loop(machine_at(machine, name, float(x)), name)
         loop = replace(loop, controller=controller).with_gains(Kp=gains.Kp, Ti=gains.Ti, Kv=gains.Kv)
         checked.append(position_margins(loop, float(x), _finite(float(row[0]))))
         notify(progress, task, i + 1, len(modes.position))
-    return StrokeTuning(result, chosen, modes, tuned_at, tuple(checked))
+    return StrokeTuning(result, chosen, modes, at, tuple(checked))
