@@ -321,8 +321,8 @@ def print_stroke_tuning(payload: dict[str, Any]) -> None:
     from rich.table import Table
 
     console = Console(highlight=False)
-    table = Table(title=f"tuned at {payload['tuned_position'] * 1e3:.6g} mm (lowest first mode); margins over "
-                        "the stroke", title_justify="left")
+    table = Table(title=f"tuned at {payload['tuned_position'] * 1e3:.6g} mm; margins over the stroke",
+                  title_justify="left")
     for col in ("position (mm)", "f1 (Hz)", "vel. PM (°)", "vel. GM (dB)", "pos. PM (°)", "pos. GM (dB)",
                 "stable", "smallest"):
         table.add_column(col, justify="right")
@@ -339,6 +339,13 @@ def print_stroke_tuning(payload: dict[str, Any]) -> None:
                       cell(p["position_phase_margin_deg"], ".2f"), cell(p["position_gain_margin_db"], ".2f"),
                       stable, ", ".join(marks), style="bold" if marks else None)
     print_table(console, table)
+    attempts = payload.get("attempts", [])
+    if len(attempts) > 1:
+        words = []
+        for a in attempts:
+            verdict = "unstable" if a["stable"] is False else f"{a['unmet']} unmet" if a["unmet"] else "all met"
+            words.append(f"{a['tuned_position'] * 1e3:.6g} mm ({verdict}{', kept' if a['chosen'] else ''})")
+        console.print("  tuned at " + ", then ".join(words), markup=False)
     console.print(f"  smallest velocity phase margin {cell(payload['min_phase_margin_deg'], '.2f')}° at "
                   f"{payload['worst_position'] * 1e3:.6g} mm; smallest gain margin "
                   f"{cell(payload['min_gain_margin_db'], '.2f')} dB at {payload['min_gain_margin_position'] * 1e3:.6g} mm")
