@@ -40,7 +40,7 @@ def test_bode_help_lists_every_loop_at_80_columns():
 
 
 @pytest.mark.parametrize("command", ["check", "modal", "simulate", "bode", "margins", "tune", "circle",
-                                     "reduce", "step", "version"])
+                                     "reduce", "step", "version", "modemap"])
 def test_no_help_text_is_cut_at_80_columns(command):
     result = run(command, "--help", env={"COLUMNS": "80"})
     assert result.exit_code == 0, result.output

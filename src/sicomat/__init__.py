@@ -60,6 +60,8 @@ _EXPORTS: dict[str, str] = {
     # reduction
     "ReductionResult": "reduction", "modal_truncation": "reduction",
     "balanced_truncation": "reduction", "physical_reduction": "reduction", "reduce": "reduction",
+    # tasks (issue 12: the mode map over the stroke)
+    "mode_map": "tasks", "ModeMap": "tasks", "tune_over_stroke": "tasks", "StrokeTuning": "tasks",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -92,3 +94,4 @@ if TYPE_CHECKING:  # the static view of the same names (mypy, IDEs)
     from .simulation import StepFigures, StepMetrics, TimeSeries, simulate, simulate_batch, step_figures
     from .simulation.paths import CircleTest, PathRun, circle_test, simulate_path
     from .tuning import TimeTargets, TimeTuningResult, TuningResult, TuningTargets, tune_frequency, tune_time
+    from .tasks import ModeMap, StrokeTuning, mode_map, tune_over_stroke

@@ -89,7 +89,7 @@ def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
         else:
             print_check(str(model), payload)
             if lumped or axis is not None:
-                from .tables import print_drive_chain
+                from .tables_chains import print_drive_chain
 
                 for name, info in payload["axes"].items():
                     if "drive_chain" in info:
@@ -124,6 +124,35 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             from .tables import print_modal
 
             print_modal(name, result)
+
+
+@app.command()
+def modemap(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
+            points: int = typer.Option(21, "--points", min=2, max=2001, metavar="N",
+                                       help="Positions over the stroke, both ends included."),
+            modes: int = typer.Option(3, "--modes", min=1, max=1000, metavar="M",
+                                      help="Flexible modes per position."),
+            set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
+            plot: Optional[Path] = PlotOption) -> None:
+    """Mode map of a drive-chain axis: its first flexible modes as the table travels over the stroke."""
+    with guarded(model):
+        from ..io.atomic import check_outputs
+        from ..tasks.modemap import mode_map
+
+        check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
+        machine = load(model, set_)
+        with progress_bar() as progress:
+            result = mode_map(machine, axis, points, modes, progress=progress)
+        if plot is not None:
+            from ..plots.base import save_figure
+
+            save_figure(result.plot(), plot)
+        if json_:
+            emit_json(result.to_dict())
+        else:
+            from .tables_chains import print_mode_map
+
+            print_mode_map(result.to_dict())
 
 
 @app.command()
@@ -323,6 +352,11 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                           help="When a notch is suggested, write and report the tuning with it."),
          write: Optional[Path] = typer.Option(None, "--write", metavar="TUNED.toml", dir_okay=False,
                                               help="Write a copy of the model with the tuned controller."),
+         all_positions: bool = typer.Option(False, "--all-positions",
+                                            help="Components axis: tune where the first mode is lowest and "
+                                                 "check the margins at every position of the mode map."),
+         points: Optional[int] = typer.Option(None, "--points", min=2, max=2001, metavar="N",
+                                              help="Positions checked by --all-positions (default 21)."),
          set_: Optional[List[str]] = SetOption, json_: bool = JsonOption) -> None:
     """Tune the cascade controller: frequency approach (margins, bandwidth) or time approach (steps)."""
     with guarded(model):
@@ -334,6 +368,12 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             raise ModelError("expected 'frequency' or 'time'", source="--method", value=method)
         if position_phase_margin is not None and position_crossover is not None:
             raise ModelError("give either --position-phase-margin or --position-crossover", source="options")
+        if all_positions and method != "frequency":
+            raise ModelError("--all-positions tunes with the frequency approach; leave out --method time",
+                             source="--method", value=method)
+        if points is not None and not all_positions:
+            raise ModelError("--points sets the positions of --all-positions; add --all-positions", source="--points",
+                             value=points)
         from ..io.atomic import check_outputs
 
         check_outputs({"--write": (write, "model")}, {"the model file": model})
@@ -355,8 +395,16 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                     position_phase_margin=None if position_crossover is not None
                                     else (position_phase_margin if position_phase_margin is not None else 80.0),
                                     position_crossover=position_crossover, min_gain_margin=min_gain_margin)
+            over = None
             with progress_bar() as progress:
-                result = tune_frequency(servo, targets, progress=progress)
+                if all_positions:
+                    from ..tasks.tune_positions import tune_over_stroke
+
+                    over = tune_over_stroke(machine, servo.axis, targets, points=points or 21,
+                                            apply_notch=apply_notch, progress=progress)
+                    result = over.result
+                else:
+                    result = tune_frequency(servo, targets, progress=progress)
             chosen = result.with_notch if apply_notch and result.with_notch is not None else result
             payload = {"method": "frequency", **chosen.to_dict()}
             if chosen is not result:
@@ -365,6 +413,8 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             elif result.with_notch is not None and result.with_notch.targets_met:
                 payload["warnings"].append("the suggested notch would meet the targets: --apply-notch")
             payload["wall_time_s"] = result.wall_time_s
+            if over is not None:
+                over.update_payload(payload)
             t = chosen.tuned
             gains = {"Kp": t.Kp, "Kp_normalized": t.Kp_normalized, "Ti": t.Ti, "Kv": t.Kv}
             notch = result.notch if chosen is not result else None
@@ -377,6 +427,10 @@ def tune(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             from .tables import print_tuning, print_verdict
 
             print_tuning(servo.axis, payload)
+            if "positions" in payload:
+                from .tables_chains import print_stroke_tuning
+
+                print_stroke_tuning(payload)
             print_verdict(payload, "tuned loop")
         exit_for(payload)
 
@@ -591,7 +645,8 @@ def size(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         if json_:
             emit_json(payload)
         else:
-            from .tables import print_sizing, print_verdict
+            from .tables import print_verdict
+            from .tables_chains import print_sizing
 
             print_sizing(payload)
             print_verdict(payload, "loop")

@@ -11,7 +11,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 from .layout import print_table
 
-__all__ = ["check_payload", "print_check", "print_modal", "print_verdict", "print_drive_chain"]
+__all__ = ["check_payload", "print_check", "print_modal", "print_verdict"]
 
 
 def check_payload(machine: "Machine", mechanics: dict[str, "Mechanics"]) -> dict[str, Any]:
@@ -289,92 +289,3 @@ def print_reduction(payload: dict[str, Any]) -> None:
     console.print("  frequencies of the reduced model (Hz): " + ", ".join(f"{f:.4g}" for f in freqs))
     if payload.get("written"):
         console.print(f"  written: {payload['written']}")
-
-
-def print_drive_chain(axis: str, chain: dict[str, Any]) -> None:
-    """Print what a drive-chain axis is lowered to (``sicomat check --lumped``): one table per group."""
-    from rich.console import Console
-    from rich.table import Table
-
-    console = Console(highlight=False)
-    if not chain["derived"]:
-        console.print(f"axis {axis}: {chain['note']}")
-        return
-    stroke = f" of a {chain['stroke']:.6g} m stroke" if chain["stroke"] is not None else ""
-    console.print(f"[bold]axis {axis}: drive chain[/] at position {chain['position']:.6g} m{stroke}, "
-                  f"detail {chain['detail']!r}")
-
-    def table(title: str, columns: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
-        if not rows:
-            return
-        t = Table(title=f"axis {axis}: {title}", title_justify="left")
-        for col in columns:
-            t.add_column(col, justify="right" if col in _NUMERIC else "left")
-        for row in rows:
-            t.add_row(*row)
-        print_table(console, t)
-
-    table("bodies", ("body", "kind", "mass or inertia", "carries"),
-          [(b["name"], b["kind"], f"{b.get('mass', b.get('inertia')):.6g} "
-            + ("kg" if b["kind"] == "translational" else "kg*m^2"), "\n".join(b["parts"])) for b in chain["bodies"]])
-    table("springs", ("spring", "between", "ratio", "stiffness", "damping", "own f (Hz)", "rule"),
-          [(s["name"], f"{s['between'][0]} - {s['between'][1]}", f"{s['ratio']:.6g}", f"{s['stiffness']:.6g}",
-            "-" if s["damping"] is None else f"{s['damping']:.4g}",
-            "-" if s["frequency_hz"] is None else f"{s['frequency_hz']:.5g}", s["rule"]) for s in chain["springs"]])
-    table("frictions", ("friction", "between", "coulomb (SI)", "viscous (SI)", "rule"),
-          [(n, " - ".join(f["between"]), f"{f['coulomb']:.6g}", f"{f['viscous']:.6g}", f.get("rule", ""))
-           for n, f in chain["frictions"].items()])
-    table("sensors and actuator", ("element", "name", "on body", "details"),
-          [("sensor", n, s["body"], ", ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
-                                              for k, v in s.items() if k != "body"))
-           for n, s in chain["sensors"].items()]
-          + [("actuator", "motor", chain["actuator"]["body"],
-              ", ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
-                        for k, v in chain["actuator"].items() if k != "body"))])
-    drive = chain["drive"]
-    table("drive constants from the motor (SI, per phase, rms)", ("key", "motor implies", "drive uses", "from"),
-          [(k, f"{v:.6g}", "-" if drive is None else f"{drive[k]:.6g}",
-            "no drive table" if drive is None else ("the file" if k in chain["drive_overrides"] else "the motor"))
-           for k, v in chain["drive_from_motor"].items()])
-    for note in chain["notes"]:
-        console.print(f"  note: {note}")
-    for warning in chain.get("datasheet_warnings", []):
-        console.print(f"  [yellow]warning[/]: {warning}")
-
-
-_NUMERIC = ("mass or inertia", "ratio", "stiffness", "damping", "own f (Hz)", "coulomb (SI)", "viscous (SI)",
-            "motor implies", "drive uses")
-
-def print_sizing(payload: dict[str, Any]) -> None:
-    """Print the checks of ``sicomat size``: failing first, then passing, then unknown (the payload's order),
-    the notes of the failing and unknown checks below the table."""
-    from rich.console import Console
-    from rich.markup import escape
-    from rich.table import Table
-
-    def cell(value: Any, unit: str) -> str:
-        if value is None:
-            return "-"
-        text = f"{value:.4g}"
-        return text + (f" ({value * 30.0 / 3.141592653589793:.4g} rpm)" if unit == "rad/s" else "")
-
-    console = Console(highlight=False)
-    verdict = {False: "[bold red]FAILED[/]", True: "[bold green]passed[/]", None: "[yellow]not all known[/]"}
-    move = payload.get("move", {})
-    what = {"trajectory": "its trajectory", "move": "the --move", "gcode": f"the G-code path {move.get('file', '')}"}
-    title = f"axis {payload['axis']}: sizing over {what.get(move.get('source', ''), 'the move')}"
-    table = Table(title=title, title_justify="left")
-    for col, justify in (("check", "left"), ("result", "left"), ("value", "right"), ("limit", "right"),
-                         ("unit", "left")):
-        table.add_column(col, justify=justify)  # type: ignore[arg-type]
-    words = {False: "[bold red]FAIL[/]", True: "[green]ok[/]", None: "[yellow]unknown[/]"}
-    for c in payload["checks"]:
-        table.add_row(c["name"], words[c["ok"]], cell(c["value"], c["unit"]), cell(c["limit"], c["unit"]), c["unit"])
-    if payload["checks"]:
-        print_table(console, table)
-    for c in payload["checks"]:      # the formulas of the passing checks are in --json and docs/components.md
-        if c["note"] and c["ok"] is not True:
-            console.print(f"  {c['name']}: {escape(c['note'])}")
-    for note in payload.get("notes", []):
-        console.print(f"  note: {escape(note)}")
-    console.print(f"sizing: {verdict[payload['ok']]}")

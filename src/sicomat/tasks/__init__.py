@@ -5,6 +5,8 @@ parameter (``ModelError.path``), and the CLI maps each to its option (``sicomat.
 from .analysis import bode_payload, margins_payload, write_tuned, response_verdict, verdict_subject
 from .reduce import (reduce_command, write_reduced, parse_band, parse_keep, parse_signals, default_transfer, default_band, METHODS)
 from .simulate import choose_profile, simulate_payload, diverged_payload, simulate_gcode, STEP_FIGURES
+from .modemap import ModeMap, mode_map, machine_at
+from .tune_positions import StrokeTuning, PositionMargins, tune_over_stroke
 
 __all__ = [
     "bode_payload",
@@ -25,4 +27,10 @@ __all__ = [
     "diverged_payload",
     "simulate_gcode",
     "STEP_FIGURES",
+    "ModeMap",
+    "mode_map",
+    "machine_at",
+    "StrokeTuning",
+    "PositionMargins",
+    "tune_over_stroke",
 ]
