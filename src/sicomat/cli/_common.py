@@ -183,3 +183,11 @@ def _finite(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [_finite(v) for v in value]
     return value
+
+# the move limits and the G-code feed, shared by simulate and size
+MaxVelocityOption = typer.Option(None, "--max-velocity", metavar="M_S", callback=number(gt=0, unit="m/s"),
+                                 help="Velocity limit of --move (m/s).")
+MaxAccelerationOption = typer.Option(None, "--max-acceleration", metavar="M_S2",
+                                     callback=number(gt=0, unit="m/s^2"), help="Acceleration limit of --move (m/s^2).")
+FeedOption = typer.Option(None, "--feed", metavar="MM_PER_MIN", callback=number(gt=0, unit="mm/min"),
+                          help="Override the G-code feed rate (mm/min).")

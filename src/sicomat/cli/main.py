@@ -7,7 +7,8 @@ from typing import List, Optional
 
 import typer
 
-from ._common import (AxisOption, JsonOption, OneLineErrors, PlotOption, SetOption, emit_json, exit_for, guarded, load, magnification_option, number)
+from ._common import (AxisOption, FeedOption, JsonOption, MaxAccelerationOption, MaxVelocityOption, OneLineErrors, PlotOption,
+                      SetOption, emit_json, exit_for, guarded, load, magnification_option, number)
 from .progress import progress_bar
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, cls=OneLineErrors,
@@ -164,18 +165,12 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
                                              help="Position step (mm)."),
              move: Optional[float] = typer.Option(None, "--move", metavar="MM", callback=number(nonzero=True),
                                                   help="Trapezoidal move (mm) with the model's or default limits."),
-             max_velocity: Optional[float] = typer.Option(None, "--max-velocity", metavar="M_S",
-                                                          callback=number(gt=0, unit="m/s"),
-                                                          help="Velocity limit of --move (m/s)."),
-             max_acceleration: Optional[float] = typer.Option(None, "--max-acceleration", metavar="M_S2",
-                                                              callback=number(gt=0, unit="m/s^2"),
-                                                              help="Acceleration limit of --move (m/s^2)."),
+             max_velocity: Optional[float] = MaxVelocityOption,
+             max_acceleration: Optional[float] = MaxAccelerationOption,
              gcode: Optional[Path] = typer.Option(None, "--gcode", metavar="FILE", dir_okay=False,
                                                   help="Follow a G-code path (G00-G03, G17, G90/G91) with the "
                                                        "axes it moves."),
-             feed: Optional[float] = typer.Option(None, "--feed", metavar="MM_PER_MIN",
-                                                  callback=number(gt=0, unit="mm/min"),
-                                                  help="Override the G-code feed rate (mm/min)."),
+             feed: Optional[float] = FeedOption,
              linear: bool = typer.Option(False, "--linear", help="Drop limits, quantizers and Coulomb friction."),
              magnification: Optional[float] = typer.Option(None, "--magnification", callback=magnification_option,
                                                            help="Scale of the contour error in the --gcode plot "
@@ -607,17 +602,12 @@ def step(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 def size(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
          move: Optional[float] = typer.Option(None, "--move", metavar="MM", callback=number(nonzero=True),
                                               help="Size a trapezoidal move (mm) instead of the axis's trajectory."),
-         max_velocity: Optional[float] = typer.Option(None, "--max-velocity", metavar="M_S",
-                                                      callback=number(gt=0, unit="m/s"),
-                                                      help="Velocity limit of --move (m/s)."),
-         max_acceleration: Optional[float] = typer.Option(None, "--max-acceleration", metavar="M_S2",
-                                                          callback=number(gt=0, unit="m/s^2"),
-                                                          help="Acceleration limit of --move (m/s^2)."),
+         max_velocity: Optional[float] = MaxVelocityOption,
+         max_acceleration: Optional[float] = MaxAccelerationOption,
          gcode: Optional[Path] = typer.Option(None, "--gcode", metavar="FILE", dir_okay=False,
                                               help="Size the axis on a G-code path (the axes it moves are "
                                                    "simulated as by simulate --gcode)."),
-         feed: Optional[float] = typer.Option(None, "--feed", metavar="MM_PER_MIN", callback=number(gt=0, unit="mm/min"),
-                                              help="Override the G-code feed rate (mm/min)."),
+         feed: Optional[float] = FeedOption,
          inertia_ratio_limit: float = typer.Option(10.0, "--inertia-ratio-limit", metavar="RATIO",
                                                    callback=number(gt=0),
                                                    help="Largest load/rotor inertia ratio accepted."),
