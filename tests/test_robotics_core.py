@@ -324,6 +324,8 @@ def _table_with(row: dict) -> list[dict]:
     (dict(GOOD, eta=1, mu=1), "mu", "elastic"),
     (dict(GOOD, sigma=2, mu=1), "mu", "fixed"),
     (dict(GOOD, sigma=2, eta=1), "eta", "fixed"),
+    (dict(GOOD, sigma=2, IA=0.1), "IA", "fixed"),
+    (dict(GOOD, sigma=2, FS=0.1), "FS", "fixed"),
     (dict(GOOD, M=-1.0), "M", "negative"),
     (dict(GOOD, k=-5.0), "k", "negative"),
     (dict(GOOD, FV=-0.1), "FV", "negative"),

@@ -152,8 +152,8 @@ class MDHRobot:
             On the first bad entry, naming the frame and the field (``path = "frames[ROW].FIELD"``):
             an unknown key, a missing ``ant``/``sigma``, an antecedent not before its frame, ``sigma``
             not in 0/1/2, ``mu``/``eta`` not 0/1, an elastic or fixed frame marked motorised, a fixed
-            frame marked elastic, a non-finite number, a negative ``M``, ``k``, ``IA``, ``FV`` or
-            ``FS``, or an inertia no real body has (not positive semi-definite about the centre of
+            frame marked elastic or given ``IA``, ``FV``, ``FS`` or ``k``, a non-finite number, a negative
+            ``M``, ``k``, ``IA``, ``FV`` or ``FS``, or an inertia no real body has (not positive semi-definite about the centre of
             mass). Closed loops (cut frames) are not supported yet: every fixed frame is rigidly
             attached to its antecedent.
 
@@ -289,5 +289,9 @@ def _row(row: int, frame: object) -> dict[str, float]:
     for key in ("M", "k", "IA", "FV", "FS"):
         if values[key] < 0.0:
             raise _error(row, key, f"{key} must not be negative", values[key])
+    if sigma == FIXED:
+        for key in ("IA", "FV", "FS", "k"):
+            if values[key] != 0.0:
+                raise _error(row, key, f"a fixed frame (sigma = 2) has no joint: {key} must be 0", values[key])
     _check_inertia(row, np.array([values[name] for name in PARAMETER_FIELDS]))
     return values
