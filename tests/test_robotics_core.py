@@ -17,12 +17,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pinocchio as pin  # a test dependency ([test] extras, requirements.lock): a missing install fails here
 import pytest
 
 from sicomat.errors import ModelError
 from sicomat.robotics import MDHRobot
 
-pin = pytest.importorskip("pinocchio")  # a test dependency (pyproject [test], requirements.lock): CI has it
 
 REL = 1e-9
 
