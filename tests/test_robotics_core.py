@@ -23,7 +23,6 @@ import pytest
 from sicomat.errors import ModelError
 from sicomat.robotics import MDHRobot
 
-
 REL = 1e-9
 
 
