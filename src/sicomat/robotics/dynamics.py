@@ -212,8 +212,8 @@ def direct_dynamics(robot: "MDHRobot", q: Any, qd: Any, tau: Any) -> np.ndarray:
     ModelError
         If the inertia matrix is singular (a joint that moves no mass and has no rotor inertia).
     """
-    q_, qd_, tau_ = _states(robot, q, qd, tau)
-    if q_.shape[0] != 1:
+    q_, qd_, tau_ = joint_states(robot, q, "q"), joint_states(robot, qd, "qd"), joint_states(robot, tau, "tau")
+    if not q_.shape[0] == qd_.shape[0] == tau_.shape[0] == 1:
         raise ModelError("direct_dynamics takes one state", path="q")
     h = inverse_dynamics(robot, q_[0], qd_[0], np.zeros(robot.n_joints))
     a = inertia_matrix(robot, q_[0])
