@@ -41,6 +41,8 @@ ALLOWED: dict[str, set[str]] = {
     "motion": {"foundation", "description"},
     "lti": {"foundation"},
     "mechanics": {"foundation", "description", "lti"},
+    # beside mechanics (issue 13): its lowering will produce a Mechanics; the numeric core needs only errors
+    "robotics": {"foundation", "description", "lti", "mechanics"},
     "servo": {"foundation", "description", "lti", "mechanics", "motion"},
     "simulation": _ANALYSES,
     "frequency": _ANALYSES,

@@ -1,0 +1,22 @@
+"""Robotics formalism (issue 13): multi-body machines described in modified Denavit–Hartenberg
+parameters (SYMORO's tables), their geometric, kinematic and dynamic models (numpy)."""
+
+from .dynamics import (direct_dynamics, inertia_matrix, inverse_dynamics, inverse_dynamics_batch, regressor,
+                       regressor_batch)
+from .geometry import jacobian, transform, transforms
+from .table import FRAME_FIELDS, PARAMETER_FIELDS, MDHRobot
+
+__all__ = [
+    "MDHRobot",
+    "FRAME_FIELDS",
+    "PARAMETER_FIELDS",
+    "transform",
+    "transforms",
+    "jacobian",
+    "inverse_dynamics",
+    "inverse_dynamics_batch",
+    "inertia_matrix",
+    "direct_dynamics",
+    "regressor",
+    "regressor_batch",
+]
