@@ -26,7 +26,7 @@ from numba import njit
 if TYPE_CHECKING:
     from .table import MDHRobot
 
-__all__ = ["flat_arrays", "rnea", "rnea_batch", "crba"]
+__all__ = ["flat_arrays", "rnea", "rnea_batch", "crba", "crba_batch"]
 
 _CACHE_KEY = "_kernel_arrays"
 
@@ -35,7 +35,7 @@ def flat_arrays(robot: "MDHRobot") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(ints, geo, chi)`` of the robot (see the module), built on first use and kept on the robot."""
     cached = robot.__dict__.get(_CACHE_KEY)
     if cached is not None:
-        return cached  # type: ignore[no-any-return]
+        return cached
     nf = robot.n_frames
     ints = np.empty((nf, 3), dtype=np.int64)
     ints[:, 0] = robot.ant
