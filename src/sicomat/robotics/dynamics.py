@@ -86,9 +86,14 @@ def _forward(robot: "MDHRobot", q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, 
     return rot, pos, w[:, 1:], wd[:, 1:], vd[:, 1:]
 
 
+_FLOAT64 = np.dtype(np.float64)
+
+
 def _joint_vector(robot: "MDHRobot", x: Any, name: str) -> np.ndarray:
     """One state as a float64 contiguous (n,) array; anything else goes through :func:`joint_states` for
     its error (finiteness is checked in the kernels)."""
+    if x.__class__ is np.ndarray and x.dtype is _FLOAT64 and x.shape == (robot.n_joints,) and x.strides == (8,):
+        return x                              # the common case, taken in ~0.1 us (the general path ~0.5 us)
     array = np.asarray(x, dtype=np.float64)
     if array.ndim == 1 and array.shape[0] == robot.n_joints:
         return np.ascontiguousarray(array)
