@@ -5,8 +5,10 @@
 
 Benchmarks: ``bench_simulation`` (issue 3: closed-loop simulation vs python-control's
 ``input_output_response``, the bare compiled loop, a 1000-variant batch), ``bench_frequency`` (issue 5:
-frequency responses vs ``frequency_response``, tuning vs a python-control Nelder–Mead tuner) and
-``bench_reduction`` (model reduction vs python-control's slycot reductions). Ours and the peers run
+frequency responses vs ``frequency_response``, tuning vs a python-control Nelder–Mead tuner),
+``bench_reduction`` (model reduction vs python-control's slycot reductions) and ``bench_robotics``
+(issue 13: inverse dynamics and the inertia matrix of a six-axis robot vs Pinocchio, one call and a
+10,000-state batch; its ratios are ours / Pinocchio's time). Ours and the peers run
 side by side in the same process; figures are wall times and ratios (how many times faster ours is).
 BLAS runs on one thread unless the caller set ``OPENBLAS_NUM_THREADS`` (or OMP/MKL) already.
 """
@@ -28,7 +30,7 @@ import traceback  # noqa: E402
 from typing import Any, Callable  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
-NAMES = ("simulation", "frequency", "reduction")
+NAMES = ("simulation", "frequency", "reduction", "robotics")
 
 
 def _reduction(quick: bool) -> dict[str, Any]:
@@ -110,14 +112,47 @@ def _summary(results: dict[str, Any]) -> str:
                              f"{1e3 * ours['balanced']['seconds']:.0f} ms", f"{1e3 * peers['balred']['seconds']:.0f} ms",
                              f"{peers['balred']['seconds'] / ours['balanced']['seconds']:.1f}x faster"
                              + (" (balred's model unusable here)" if bad else ""), "—", None])
+    rob = results.get("robotics", {}).get("result")
+    if rob:
+        o, b = rob["one_call"]["per_call_s"], rob["batch"]["per_state_s"]
+        q, g = rob["ratios_ours_over_pinocchio"], rob["goals_met"]
+        for label, ours, peer, ratio, target, met in (
+                ("robotics: inverse_dynamics, one call vs pin.rnea", o["ours_rnea"], o["pin_rnea"],
+                 q["one_call_rnea"], "<= 5x", g["one_call_rnea_within_5x"]),
+                ("robotics: inertia_matrix, one call vs pin.crba", o["ours_crba"], o["pin_crba"],
+                 q["one_call_crba"], "<= 5x", g["one_call_crba_within_5x"]),
+                ("robotics: inverse_dynamics_batch per state vs pin.rnea loop", b["ours_rnea"], b["pin_rnea_loop"],
+                 q["batch_rnea_vs_pin_loop"], "<= 1x", g["batch_rnea_at_or_below_pin_per_state"]),
+                ("robotics: inertia_matrix_batch per state vs pin.crba loop", b["ours_crba"], b["pin_crba_loop"],
+                 q["batch_crba_vs_pin_loop"], "<= 1x", g["batch_crba_at_or_below_pin_per_state"])):
+            rows.append([label, _common.fmt_s(ours["best"]), _common.fmt_s(peer["best"]),
+                         f"{ratio['best']:.2f}x Pinocchio's time", target, met])
     return _common.table(["benchmark", "ours", "peer", "ratio", "target", "met"], rows,
                          title="Summary (best-of times; see each table for medians and ranges)")
+
+
+def _kept_from_earlier(output: Path, results: dict[str, Any]) -> dict[str, Any]:
+    """With ``--only``: the other benchmarks' entries of the existing results file, kept (each still
+    names the run it came from: ``created_in_run``, or the file's ``created`` for older entries)."""
+    import json
+
+    try:
+        earlier = json.loads(output.read_text())
+    except (OSError, ValueError):
+        return {}
+    kept = {}
+    for name, entry in (earlier.get("benchmarks") or {}).items():
+        if name not in results and isinstance(entry, dict):
+            kept[name] = {**entry, "created_in_run": entry.get("created_in_run", earlier.get("created")),
+                          "quick": entry.get("quick", earlier.get("quick"))}
+    return kept
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Run SICOMAT's benchmarks side by side with their peers.")
     parser.add_argument("--quick", action="store_true", help="smoke run: fewer repeats, shorter ODE peer")
-    parser.add_argument("--only", choices=NAMES, action="append", help="run only this benchmark (repeatable)")
+    parser.add_argument("--only", choices=NAMES, action="append",
+                        help="run only this benchmark (repeatable); the others' entries in the output are kept")
     parser.add_argument("--output", type=Path, default=RESULTS, help=f"JSON output (default {RESULTS})")
     args = parser.parse_args(argv)
 
@@ -137,12 +172,13 @@ def main(argv: list[str] | None = None) -> int:
         print("OPENBLAS_CORETYPE is not set in this environment (numpy runs its own OpenBLAS kernel).")
     print("Timings are wall times on a shared machine: best of N interleaved runs, with median and worst beside.")
 
-    from benchmarks import bench_frequency, bench_simulation
+    from benchmarks import bench_frequency, bench_robotics, bench_simulation
 
     benches: dict[str, tuple[Callable[[bool], dict[str, Any]], Callable[[dict[str, Any]], str]]] = {
         "simulation": (lambda q: bench_simulation.run(quick=q), bench_simulation.report),
         "frequency": (lambda q: bench_frequency.run(quick=q), bench_frequency.report),
         "reduction": (_reduction, _reduction_report),
+        "robotics": (lambda q: bench_robotics.run(quick=q), bench_robotics.report),
     }
     results: dict[str, Any] = {}
     failed = []
@@ -157,7 +193,8 @@ def main(argv: list[str] | None = None) -> int:
             results[name] = {"seconds": time.perf_counter() - t0, "error": f"{type(exc).__name__}: {exc}"}
             failed.append(name)
             continue
-        results[name] = {"seconds": time.perf_counter() - t0, "result": r}
+        results[name] = {"seconds": time.perf_counter() - t0, "result": r,
+                         "created_in_run": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "quick": args.quick}
         print(report(r))
         print(f"({name}: {results[name]['seconds']:.1f} s)", flush=True)
 
@@ -165,9 +202,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\n{'=' * 100}")
     print(_summary(results))
     info["loadavg_at_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
+    created = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    kept = _kept_from_earlier(args.output, results) if args.only else {}
     payload = {"quick": args.quick, "total_seconds": total, "machine": info, "notes": notes,
-               "benchmarks": results, "failed": failed,
-               "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+               "benchmarks": results, "failed": failed, "created": created}
+    if kept:
+        payload["benchmarks"] = {**{k: v for k, v in kept.items()}, **results}
+        payload["kept_from_earlier_runs"] = {k: v.get("created_in_run") for k, v in kept.items()}
     args.output.write_text(_common.to_json(payload) + "\n")
     print(f"\nTotal {total:.1f} s; results written to {args.output}"
           + (f"; FAILED: {', '.join(failed)}" if failed else ""))

@@ -228,7 +228,7 @@ def test_batch_equals_one_by_one(tree):
     q, qd, qdd = _random_states(robot, 3, 25)
     batch = robot.inverse_dynamics_batch(q, qd, qdd)
     one_by_one = np.array([robot.inverse_dynamics(*state) for state in zip(q, qd, qdd)])
-    # the same operations in the same order per state: equal to rounding of the vectorised einsum
+    # the same compiled recursion per state (the batch kernel loops over states inside numba)
     np.testing.assert_allclose(batch, one_by_one, rtol=0, atol=1e-12 * max(1.0, np.max(np.abs(one_by_one))))
 
 
@@ -376,3 +376,110 @@ def test_joint_vectors_of_the_wrong_length_are_rejected():
     assert robot.n_joints == 2
     with pytest.raises(ModelError, match="2 joint values"):
         robot.inverse_dynamics([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+
+
+# --------------------------------------------------------------------------- the compiled kernels
+# Newton–Euler and the inertia matrix run in numba (robotics/_kernels.py); the regressor stays numpy
+# (its own forward recursion, dynamics._forward): the two engines are checked against each other on
+# random trees, larger ones too, beside the Pinocchio checks above.
+KERNEL_CASES = [(seed, True) for seed in range(6)] + [(seed, False) for seed in range(2)]
+
+
+def _big_random_table(seed: int) -> list[dict[str, float]]:
+    """A random tree of 12-20 frames, built from two random tables joined end to end."""
+    first, second = _random_table(seed, True), _random_table(seed + 50, True)
+    rng = np.random.default_rng(seed + 99)
+    offset = len(first)
+    joined = [dict(row) for row in first]
+    for row in second:
+        row = dict(row)
+        row["ant"] = row["ant"] + offset if row["ant"] > 0 else int(rng.integers(0, offset + 1))
+        joined.append(row)
+    return joined + [dict(row, ant=row["ant"] + len(joined) if row["ant"] > 0 else len(joined))
+                     for row in _random_table(seed + 77, False)]
+
+
+@pytest.mark.parametrize("seed,tree", KERNEL_CASES)
+@pytest.mark.parametrize("big", [False, True])
+def test_compiled_kernels_equal_the_numpy_regressor_engine(seed, tree, big):
+    frames = _big_random_table(seed) if big else _random_table(seed, tree)
+    robot = MDHRobot.from_table(frames)
+    chi = robot.standard_parameters()
+    n = robot.n_joints
+    q, qd, qdd = _random_states(robot, seed, 4)
+    for state in zip(q, qd, qdd):
+        tau = robot.inverse_dynamics(*state)
+        reference = robot.regressor(*state) @ chi
+        scale = max(1.0, float(np.max(np.abs(reference))))
+        np.testing.assert_allclose(tau, reference, rtol=0, atol=1e-12 * scale)
+        # column j of A(q): the torques of a unit qdd_j at rest, gravity removed (linear in qdd)
+        at_rest = robot.regressor(state[0], np.zeros(n), np.zeros(n)) @ chi
+        columns = np.column_stack([robot.regressor(state[0], np.zeros(n), e) @ chi - at_rest for e in np.eye(n)])
+        a = robot.inertia_matrix(state[0])
+        np.testing.assert_allclose(a, columns, rtol=0, atol=1e-12 * max(1.0, float(np.max(np.abs(columns)))))
+        np.testing.assert_array_equal(a, a.T)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_batch_kernels_equal_one_by_one(seed):
+    robot = MDHRobot.from_table(_big_random_table(seed))
+    q, qd, qdd = _random_states(robot, seed, 30)
+    batch = robot.inverse_dynamics_batch(q, qd, qdd)
+    one_by_one = np.array([robot.inverse_dynamics(*state) for state in zip(q, qd, qdd)])
+    np.testing.assert_allclose(batch, one_by_one, rtol=0, atol=1e-13 * max(1.0, float(np.max(np.abs(one_by_one)))))
+    from sicomat.robotics import inertia_matrix_batch
+
+    matrices = inertia_matrix_batch(robot, q)
+    assert matrices.shape == (30, robot.n_joints, robot.n_joints)
+    for qs, a in zip(q, matrices):
+        np.testing.assert_allclose(a, robot.inertia_matrix(qs), rtol=0, atol=1e-13 * max(1.0, float(np.max(np.abs(a)))))
+    # one state given as a (1, n) batch, and as a list
+    np.testing.assert_array_equal(robot.inverse_dynamics(q[:1], qd[:1], qdd[:1]), one_by_one[0])
+    np.testing.assert_array_equal(robot.inertia_matrix(list(q[0])), matrices[0])
+
+
+def test_compiled_kernels_reject_non_finite_states_and_wrong_shapes():
+    from sicomat.robotics import inertia_matrix_batch
+
+    robot = MDHRobot.from_table(_random_table(1, True))
+    n = robot.n_joints
+    good = np.zeros(n)
+    bad = good.copy()
+    bad[-1] = np.nan
+    for args, name in (((bad, good, good), "q"), ((good, bad, good), "qd"), ((good, good, bad), "qdd")):
+        with pytest.raises(ModelError, match="finite") as caught:
+            robot.inverse_dynamics(*args)
+        assert caught.value.path == name
+        with pytest.raises(ModelError, match="finite"):
+            robot.inverse_dynamics_batch(*(np.tile(x, (3, 1)) for x in args))
+    with pytest.raises(ModelError, match="finite"):
+        robot.inertia_matrix(bad)
+    with pytest.raises(ModelError, match="finite"):
+        inertia_matrix_batch(robot, np.tile(bad, (2, 1)))
+    with pytest.raises(ModelError, match="one state"):
+        robot.inverse_dynamics(np.zeros((2, n)), np.zeros((2, n)), np.zeros((2, n)))
+    with pytest.raises(ModelError, match="one state"):
+        robot.inertia_matrix(np.zeros((2, n)))
+    with pytest.raises(ModelError, match=f"{n} joint values"):
+        robot.inertia_matrix(np.zeros(n + 1))
+
+
+def test_kernel_arrays_are_prepared_once_per_robot_and_read_only():
+    from sicomat.robotics._kernels import flat_arrays
+
+    robot = MDHRobot.from_table(_random_table(2, True))
+    first = flat_arrays(robot)
+    robot.inverse_dynamics(*(np.zeros(robot.n_joints),) * 3)
+    assert all(a is b for a, b in zip(first, flat_arrays(robot)))
+    assert not any(a.flags.writeable for a in first)
+    # the table's gamma, b, alpha, d, theta, r reproduce the local transforms of the numpy geometry
+    from sicomat.robotics.geometry import local_transforms
+
+    q = _random_states(robot, 2, 1)[0]
+    rot, pos = local_transforms(robot, q)
+    ints, geo, _ = first
+    c = geo[:, :9].reshape(-1, 3, 3)
+    np.testing.assert_allclose(c[:, :, 2], rot[0, :, :, 2], atol=1e-15)
+    revolute = robot.sigma != 1                    # r is constant there: the origin is p0 + C[:, 2] r
+    np.testing.assert_allclose((geo[:, 9:12] + c[:, :, 2] * geo[:, 13:14])[revolute], pos[0][revolute], atol=1e-15)
+    assert ints[:, 0].tolist() == robot.ant.tolist() and ints[:, 2].tolist() == robot.joint_of_frame.tolist()

@@ -3,6 +3,7 @@ parameters (SYMORO's tables), their geometric, kinematic and dynamic models (num
 
 from .dynamics import (direct_dynamics, inertia_matrix, inverse_dynamics, inverse_dynamics_batch, regressor,
                        regressor_batch)
+from .dynamics import inertia_matrix_batch
 from .geometry import jacobian, transform, transforms
 from .table import FRAME_FIELDS, PARAMETER_FIELDS, MDHRobot
 
@@ -16,6 +17,7 @@ __all__ = [
     "inverse_dynamics",
     "inverse_dynamics_batch",
     "inertia_matrix",
+    "inertia_matrix_batch",
     "direct_dynamics",
     "regressor",
     "regressor_batch",

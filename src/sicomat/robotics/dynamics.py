@@ -16,13 +16,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import ModelError
+from . import _kernels
+from ._kernels import flat_arrays
 from .geometry import joint_states, local_transforms
 
 if TYPE_CHECKING:
     from .table import MDHRobot
 
-__all__ = ["inverse_dynamics", "inverse_dynamics_batch", "inertia_matrix", "direct_dynamics", "regressor",
-           "regressor_batch"]
+__all__ = ["inverse_dynamics", "inverse_dynamics_batch", "inertia_matrix", "inertia_matrix_batch", "direct_dynamics",
+           "regressor", "regressor_batch"]
 
 
 def _states(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -84,15 +86,31 @@ def _forward(robot: "MDHRobot", q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, 
     return rot, pos, w[:, 1:], wd[:, 1:], vd[:, 1:]
 
 
-def _joint_extras(robot: "MDHRobot", qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-    """Rotor inertia and friction of each joint: ``IA qdd + FV qd + FS sign(qd)`` (S, n)."""
-    rows = robot.joint_frames
-    ia, fv, fs = (robot.chi[rows, c] for c in (10, 11, 12))
-    return ia * qdd + fv * qd + fs * np.sign(qd)
+_FLOAT64 = np.dtype(np.float64)
+
+
+def _joint_vector(robot: "MDHRobot", x: Any, name: str) -> np.ndarray:
+    """One state as a float64 contiguous (n,) array; anything else goes through :func:`joint_states` for
+    its error (finiteness is checked in the kernels)."""
+    if x.__class__ is np.ndarray and x.dtype is _FLOAT64 and x.shape == (robot.n_joints,) and x.strides == (8,):
+        return x                              # the common case, taken in ~0.1 us (the general path ~0.5 us)
+    array = np.asarray(x, dtype=np.float64)
+    if array.ndim == 1 and array.shape[0] == robot.n_joints:
+        return np.ascontiguousarray(array)
+    states = joint_states(robot, x, name)
+    if states.shape[0] != 1:
+        raise ModelError(f"{name}: this function takes one state", path=name)
+    return np.ascontiguousarray(states[0])
+
+
+def _not_finite(robot: "MDHRobot", **arrays: np.ndarray) -> ModelError:
+    for name, x in arrays.items():
+        joint_states(robot, x, name)          # raises on the first non-finite one
+    return ModelError("joint values must be finite", path="q")  # pragma: no cover - joint_states raised
 
 
 def inverse_dynamics_batch(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> np.ndarray:
-    """Joint torques/forces of many states by recursive Newton–Euler, vectorised over the states.
+    """Joint torques/forces of many states by recursive Newton–Euler, the loop over the states compiled.
 
     Parameters
     ----------
@@ -105,8 +123,11 @@ def inverse_dynamics_batch(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> np.n
         Torques (N m) of revolute joints, forces (N) of prismatic ones, gravity, rotor inertia ``IA``
         and friction (``FV qd + FS sign(qd)``) included.
     """
-    q_, qd_, qdd_ = _states(robot, q, qd, qdd)
-    return _rnea(robot, q_, qd_, qdd_, robot.gravity) + _joint_extras(robot, qd_, qdd_)
+    q_, qd_, qdd_ = (np.ascontiguousarray(x) for x in _states(robot, q, qd, qdd))
+    ints, geo, chi = flat_arrays(robot)
+    tau = np.empty(q_.shape)
+    _kernels.rnea_batch(ints, geo, chi, robot.gravity, q_, qd_, qdd_, tau)
+    return tau
 
 
 def inverse_dynamics(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> np.ndarray:
@@ -121,40 +142,12 @@ def inverse_dynamics(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> np.ndarray
     >>> inverse_dynamics(slide, [0.0], [0.0], [1.0]).round(6).tolist()
     [21.62]
     """
-    tau = inverse_dynamics_batch(robot, q, qd, qdd)
-    if tau.shape[0] != 1:
-        raise ModelError("inverse_dynamics takes one state; use inverse_dynamics_batch", path="q")
-    return tau[0]
-
-
-def _rnea(robot: "MDHRobot", q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, gravity: np.ndarray) -> np.ndarray:
-    """Rigid-body torques (no IA, no friction), (S, n)."""
-    rot, pos, w, wd, vd = _forward(robot, q, qd, qdd, gravity)
-    s, nf = q.shape[0], robot.n_frames
-    ms, mass = robot.chi[:, 6:9], robot.chi[:, 9]
-    f = np.zeros((s, nf, 3))
-    n = np.zeros((s, nf, 3))
-    tau = np.zeros((s, robot.n_joints))
-    for row in range(nf - 1, -1, -1):
-        xx, xy, xz, yy, yz, zz = robot.chi[row, :6]
-        inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        wj, wdj, vdj = w[:, row], wd[:, row], vd[:, row]
-        f[:, row] += mass[row] * vdj + _cross(wdj, ms[row]) + _cross(wj, _cross(wj, ms[row]))
-        n[:, row] += wdj @ inertia.T + _cross(wj, wj @ inertia.T) + _cross(ms[row], vdj)
-        k = robot.joint_of_frame[row]
-        if k >= 0:
-            tau[:, k] = f[:, row, 2] if robot.sigma[row] == 1 else n[:, row, 2]
-        a = int(robot.ant[row])
-        if a > 0:
-            fr = _r(rot[:, row], f[:, row])
-            f[:, a - 1] += fr
-            n[:, a - 1] += _r(rot[:, row], n[:, row]) + _cross(pos[:, row], fr)
+    q_, qd_, qdd_ = _joint_vector(robot, q, "q"), _joint_vector(robot, qd, "qd"), _joint_vector(robot, qdd, "qdd")
+    ints, geo, chi = flat_arrays(robot)
+    tau = np.empty(q_.shape[0])
+    if not _kernels.rnea(ints, geo, chi, robot.gravity, q_, qd_, qdd_, tau):
+        raise _not_finite(robot, q=q_, qd=qd_, qdd=qdd_)
     return tau
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    x, y, z = v
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def inertia_matrix(robot: "MDHRobot", q: Any) -> np.ndarray:
@@ -163,44 +156,24 @@ def inertia_matrix(robot: "MDHRobot", q: Any) -> np.ndarray:
     The composite link of frame j (its link and every descendant) is accumulated at O_j in frame j:
     ``J+_i += R J+_j R^T - (p^ S^ + S^ p^) - M+_j p^ p^``, ``MS+_i += S + M+_j p``, ``M+_i += M+_j``
     (``S = R MS+_j``). A unit acceleration of joint j moves it rigidly; the wrench it needs, carried
-    down to each ancestor joint, is column j.
+    down to each ancestor joint, is column j. Compiled (:mod:`sicomat.robotics._kernels`).
     """
-    states = joint_states(robot, q)
-    if states.shape[0] != 1:
-        raise ModelError("inertia_matrix takes one state", path="q")
-    rot, pos = (x[0] for x in local_transforms(robot, states))
-    nf = robot.n_frames
-    chi = robot.chi
-    j_plus = np.array([[[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]] for c in chi])
-    ms_plus = chi[:, 6:9].copy()
-    m_plus = chi[:, 9].copy()
-    for row in range(nf - 1, -1, -1):
-        a = int(robot.ant[row])
-        if a == 0:
-            continue
-        rr, p = rot[row], pos[row]
-        s_vec = rr @ ms_plus[row]
-        ps, ss = _skew(p), _skew(s_vec)
-        j_plus[a - 1] += rr @ j_plus[row] @ rr.T - (ps @ ss + ss @ ps) - m_plus[row] * (ps @ ps)
-        ms_plus[a - 1] += s_vec + m_plus[row] * p
-        m_plus[a - 1] += m_plus[row]
-    n = robot.n_joints
-    out = np.zeros((n, n))
-    ez = np.array([0.0, 0.0, 1.0])
-    for row in robot.joint_frames:
-        col = robot.joint_of_frame[row]
-        if robot.sigma[row] == 0:
-            f, mom = _cross(ez, ms_plus[row]), j_plus[row] @ ez
-        else:
-            f, mom = m_plus[row] * ez, _cross(ms_plus[row], ez)
-        out[col, col] = (f[2] if robot.sigma[row] == 1 else mom[2]) + chi[row, 10]
-        k = row
-        while robot.ant[k] > 0:
-            f, mom = rot[k] @ f, rot[k] @ mom + _cross(pos[k], rot[k] @ f)
-            k = int(robot.ant[k]) - 1
-            other = robot.joint_of_frame[k]
-            if other >= 0:
-                out[other, col] = out[col, other] = f[2] if robot.sigma[k] == 1 else mom[2]
+    q_ = _joint_vector(robot, q, "q")
+    ints, geo, chi = flat_arrays(robot)
+    n = q_.shape[0]
+    out = np.empty((n, n))
+    if not _kernels.crba(ints, geo, chi, q_, out):
+        raise _not_finite(robot, q=q_)
+    return out
+
+
+def inertia_matrix_batch(robot: "MDHRobot", q: Any) -> np.ndarray:
+    """:func:`inertia_matrix` of many states, ``q`` (n_states, n), result (n_states, n, n)."""
+    q_ = np.ascontiguousarray(joint_states(robot, q, "q"))
+    ints, geo, chi = flat_arrays(robot)
+    n = q_.shape[1]
+    out = np.empty((q_.shape[0], n, n))
+    _kernels.crba_batch(ints, geo, chi, q_, out)
     return out
 
 
