@@ -261,6 +261,61 @@ def test_inertial_base_torques_are_the_rigid_body_torques():
                                atol=REL * np.max(np.abs(rigid)))
 
 
+def _random_tree(seed: int) -> MDHRobot:
+    """Any structure: branches, prismatic joints, fixed frames, nonzero gamma and b (as in the core's tests)."""
+    rng = np.random.default_rng(seed)
+    rows: list[dict[str, float]] = []
+    for j in range(1, int(rng.integers(4, 8)) + 1):
+        sigma = int(rng.choice([0, 1, 2], p=[0.5, 0.35, 0.15])) if j > 1 else int(rng.integers(0, 2))
+        row: dict[str, float] = {"ant": int(rng.integers(0, j)), "sigma": sigma, **_physical(rng)}
+        row.update({key: rng.uniform(-PI, PI) for key in ("gamma", "alpha", "theta")})
+        row.update({key: rng.uniform(-0.5, 0.5) for key in ("b", "d", "r")})
+        if sigma != 2:
+            row.update(IA=rng.uniform(0.0, 0.2), FV=rng.uniform(0.0, 0.5), FS=rng.uniform(0.0, 0.5))
+        rows.append(row)
+    return MDHRobot.from_table(rows, gravity=(0.0, 0.0, -9.81))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_any_tree(seed):
+    """The numerical method needs no structure: the base model reproduces the torques, and the count is
+    the rank of a fresh stack of regressors by numpy's own SVD (its default tolerance)."""
+    robot = _random_tree(seed)
+    base = robot.base_parameters()
+    q, qd, qdd = _states(robot, seed=seed + 50, count=80)
+    tau = inverse_dynamics_batch(robot, q, qd, qdd)
+    phi = regressor_batch(robot, q, qd, qdd)
+    np.testing.assert_allclose(phi[:, :, base.indices] @ base.values, tau, rtol=0, atol=REL * np.max(np.abs(tau)))
+    assert base.count == np.linalg.matrix_rank(phi.reshape(-1, phi.shape[-1]))
+
+
+@pytest.mark.parametrize("make", [rx90, puma560, planar_2r, cross_slide, elastic_cross_slide],
+                         ids=["RX-90", "PUMA 560", "2R", "XY", "elastic XY"])
+def test_count_is_the_rank_by_svd(make):
+    robot = make()
+    q, qd, qdd = _states(robot, seed=77, count=80)
+    phi = regressor_batch(robot, q, qd, qdd)
+    assert robot.base_parameters().count == np.linalg.matrix_rank(phi.reshape(-1, phi.shape[-1]))
+
+
+def test_a_selection_short_of_the_rank_is_reported(monkeypatch):
+    """The guard between the column selection and the pivoted-QR rank (they disagree only when the
+    tolerance meets the conditioning of the states) raises instead of returning a wrong count."""
+    from sicomat.errors import AnalysisError
+    from sicomat.robotics import base as module
+
+    real = module._pivoted_rank
+    monkeypatch.setattr(module, "_pivoted_rank", lambda columns, tol: real(columns, tol) + 1)
+    with pytest.raises(AnalysisError, match="rank"):
+        rx90().base_parameters()
+
+
+def test_regroup_checks_its_input():
+    base = planar_2r().base_parameters()
+    with pytest.raises(ValueError, match="26 standard parameters"):
+        base.regroup(np.zeros(20))
+
+
 # --------------------------------------------------------------------------- determinism, samples
 def test_deterministic_under_a_seed():
     robot = puma560()

@@ -74,6 +74,8 @@ class BaseParameters:
         The base parameters of the robot's own standard parameters.
     parameters : {"all", "inertial"}
         Which standard parameters were considered: all 13 per link, or only ``XX..M`` (10 per link).
+    n_standard : int
+        The length of the robot's standard-parameter vector, ``13 NF``.
     """
 
     names: tuple[str, ...]
@@ -85,6 +87,7 @@ class BaseParameters:
     beta: np.ndarray
     values: np.ndarray
     parameters: str
+    n_standard: int
 
     @property
     def count(self) -> int:
@@ -112,9 +115,9 @@ class BaseParameters:
         """The base parameters (count,) of other standard parameters of the same robot, a vector laid
         out as :meth:`MDHRobot.standard_parameters` (``13 NF``)."""
         chi = np.asarray(standard, dtype=float)
-        size = max(int(self.indices.max(initial=-1)), int(self.dropped_indices.max(initial=-1))) + 1
-        if chi.ndim != 1 or chi.shape[0] < size:
-            raise ValueError(f"expected the standard parameters (13 per frame), got shape {chi.shape}")
+        if chi.shape != (self.n_standard,):
+            raise ValueError(f"expected the {self.n_standard} standard parameters (13 per frame), "
+                             f"got shape {chi.shape}")
         return chi[self.indices] + self.beta @ chi[self.dropped_indices]
 
     def to_dict(self) -> dict[str, Any]:
@@ -252,4 +255,5 @@ def base_parameters(robot: "MDHRobot", *, parameters: Literal["all", "inertial"]
     return BaseParameters(names=names, labels=labels, indices=indices,
                           dropped=tuple(names_all[i] for i in dropped_indices), dropped_indices=dropped_indices,
                           unidentifiable=tuple(names_all[i] for i in zero), beta=beta,
-                          values=chi[indices] + beta @ chi[dropped_indices], parameters=parameters)
+                          values=chi[indices] + beta @ chi[dropped_indices], parameters=parameters,
+                          n_standard=len(chi))
