@@ -219,6 +219,11 @@ def test_rx90_regrouping_relations(parameters):
     def times(factor: float, terms: dict[str, float]) -> dict[str, float]:
         return {name: factor * value for name, value in terms.items()}
 
+    # ZZ1R, by the notes' §2.7 rules by hand: joint 2 (alpha2 = pi/2, d2 = r2 = 0) sends ZZ1 += YY2',
+    # joint 3 (alpha3 = 0, d3 = D3) made YY2' = YY2 + YY3' + D3^2 MR3, joint 4 (alpha4 = -pi/2, d4 = 0)
+    # leaves YY3' = YY3; IA1 joins ZZ1 (j = r1)
+    _assert_relation(base, "ZZ1", {"YY2": 1.0, "YY3": 1.0, **times(D3 ** 2, mr3),
+                                   **({"IA1": 1.0} if parameters == "all" else {})})
     _assert_relation(base, "XX2", {"YY2": -1.0, **times(-D3 ** 2, mr3)})
     _assert_relation(base, "XZ2", {"MZ3": -D3})
     _assert_relation(base, "ZZ2", {**times(D3 ** 2, mr3), **({"IA2": 1.0} if parameters == "all" else {})})
