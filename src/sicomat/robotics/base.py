@@ -24,9 +24,8 @@ import scipy.linalg
 
 from ..errors import AnalysisError
 from .dynamics import regressor_batch
-from .table import PARAMETER_FIELDS
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # table imports this module lazily (MDHRobot.base_parameters): no runtime import back
     from .table import MDHRobot
 
 __all__ = ["BaseParameters", "base_parameters"]
@@ -221,8 +220,9 @@ def base_parameters(robot: "MDHRobot", *, parameters: Literal["all", "inertial"]
     n = robot.n_joints
     if n == 0:
         raise ValueError("the robot has no joint (every frame is fixed): no torque, no base parameters")
-    per_link = len(PARAMETER_FIELDS) if parameters == "all" else _INERTIAL
-    considered = np.array([len(PARAMETER_FIELDS) * row + c for row in range(robot.n_frames) for c in range(per_link)])
+    stride = robot.chi.shape[1]      # the 13 standard parameters of a link
+    per_link = stride if parameters == "all" else _INERTIAL
+    considered = np.array([stride * row + c for row in range(robot.n_frames) for c in range(per_link)])
     if samples * n < len(considered):
         raise ValueError(f"samples * n_joints = {samples * n} rows cannot show the rank of {len(considered)} "
                          f"parameters: use samples >= {-(-len(considered) // n)}")
