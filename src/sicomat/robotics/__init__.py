@@ -1,6 +1,7 @@
 """Robotics formalism (issue 13): multi-body machines described in modified Denavit–Hartenberg
 parameters (SYMORO's tables), their geometric, kinematic and dynamic models (numpy)."""
 
+from .base import BaseParameters, base_parameters
 from .dynamics import (direct_dynamics, inertia_matrix, inverse_dynamics, inverse_dynamics_batch, regressor,
                        regressor_batch)
 from .dynamics import inertia_matrix_batch
@@ -21,4 +22,6 @@ __all__ = [
     "direct_dynamics",
     "regressor",
     "regressor_batch",
+    "base_parameters",
+    "BaseParameters",
 ]

@@ -4,6 +4,7 @@ frames (Khalil–Kleinfinger modified Denavit–Hartenberg, SYMORO's field names
 from __future__ import annotations
 
 import math
+import typing
 from dataclasses import dataclass, field
 from numbers import Integral, Real
 from typing import Any, Mapping, Sequence
@@ -11,6 +12,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import ModelError
+
+if typing.TYPE_CHECKING:
+    from .base import BaseParameters
 
 __all__ = ["MDHRobot", "FRAME_FIELDS", "PARAMETER_FIELDS"]
 
@@ -241,6 +245,12 @@ class MDHRobot:
         """``Phi`` (n x 13 NF) with ``inverse_dynamics = Phi @ standard_parameters()``."""
         from .dynamics import regressor
         return regressor(self, q, qd, qdd)
+
+    def base_parameters(self, **options: Any) -> "BaseParameters":
+        """The base inertial parameters (numerical method); see :func:`sicomat.robotics.base.base_parameters`
+        for the options (``parameters``, ``samples``, ``seed``, ``tol``)."""
+        from .base import base_parameters
+        return base_parameters(self, **options)
 
 
 def _gravity(gravity: object) -> np.ndarray:
