@@ -105,3 +105,17 @@ def test_every_exported_name_resolves():
     # (StepMetrics, simulate_path, circle_test, PathRun and CircleTest did not, after the re-layout)
     missing = [name for name in sicomat._EXPORTS if not hasattr(sicomat, name)]
     assert missing == []
+
+
+def test_the_robotics_and_catalogue_subpackages_are_reached_from_import_sicomat():
+    # the spelling, sicomat.robotics.MDHRobot.from_table, after a plain `import sicomat` (run in a
+    # fresh interpreter: this test process may have imported the subpackages already)
+    import subprocess
+    import sys
+
+    code = ("import sicomat, sys; assert 'sicomat.robotics' not in sys.modules; "
+            "r = sicomat.robotics.MDHRobot.from_table([{'ant': 0, 'sigma': 1, 'M': 2.0}]); "
+            "print(len(sicomat.catalogue.load_catalogue()) > 60, r.inverse_dynamics([0.0], [0.0], [1.0])[0])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    # a 2 kg prismatic link along the base z axis, gravity -9.81 along z: tau = M (qdd + 9.81) = 21.62 N
+    assert out[0] == "True" and abs(float(out[1]) - 2.0 * (1.0 + 9.81)) < 1e-12

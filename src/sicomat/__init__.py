@@ -67,7 +67,16 @@ _EXPORTS: dict[str, str] = {
 __all__ = ["__version__", *_EXPORTS]
 
 
+_SUBPACKAGES = ("robotics", "catalogue")
+"""Subpackages reached as attributes without their own import (``sicomat.robotics.MDHRobot``), loaded
+on first use like the names above."""
+
+
 def __getattr__(name: str) -> Any:
+    if name in _SUBPACKAGES:
+        module = importlib.import_module(f".{name}", __name__)
+        globals()[name] = module
+        return module
     try:
         package = _EXPORTS[name]
     except KeyError:
@@ -78,7 +87,7 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+    return sorted(set(globals()) | set(_EXPORTS) | set(_SUBPACKAGES))
 
 
 if TYPE_CHECKING:  # the static view of the same names (mypy, IDEs)
