@@ -96,7 +96,6 @@ class _Builder:
     def __init__(self) -> None:
         self.bodies: list[ChainBody] = []
         self.springs: list[ChainSpring] = []
-        self.pending: tuple[str, Literal["translational", "rotational"], float] | None = None
         self.names: set[str] = set()
 
     def unique(self, name: str) -> str:
@@ -107,7 +106,6 @@ class _Builder:
         return name
 
     def open(self, kind: Literal["translational", "rotational"], gain: float, name: str | None = None) -> None:
-        self.pending = None
         self.bodies.append(ChainBody(self.unique(name) if name else "", kind, 0.0, gain))
 
     @property
@@ -148,9 +146,7 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
     motor = parts[0]
     linear = motor.kind == "linear-motor"
     label = {i: f"parts.{i} ({p.kind}{' ' + p.id if p.id else ''})" for i, p in enumerate(parts)}
-    frictions: dict[str, dict[str, Any]] = {}
-    sensors: dict[str, dict[str, Any]] = {}
-    sensor_at: list[tuple[int, Any, str]] = []   # (part index, part, body name) resolved after merging
+    sensor_at: list[tuple[int, Any]] = []   # (part index, encoder or scale part), placed after merging
     if linear:
         b.open("translational", 1.0, "table")
         b.add(motor.primary_mass, f"{label[0]}: primary {_qty(motor.primary_mass, 'kg')}")
@@ -159,8 +155,6 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
         b.add(motor.rotor_inertia, f"{label[0]}: rotor {_qty(motor.rotor_inertia, 'kg*m^2')}")
         if motor.shaft_torsional_stiffness is not None and spec.detail != "rigid":
             b.spring("motor_shaft", motor.shaft_torsional_stiffness, 1.0, f"{label[0]}: shaft_torsional_stiffness")
-    load_kind: Literal["translational", "rotational"] = "rotational"
-    table_masses: list[str] = []
     moving_mass_parts: list[tuple[float, str]] = []
     for i, p in enumerate(parts[1:], start=1):
         if p.kind == "coupling":
@@ -194,13 +188,11 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
                 kax, rule = math.inf, f"{label[i]}: rigid (no nut/bearing stiffness; detail 'rigid')"
             b.spring("screw_axial", kax, lead, rule + f", through the lead p/2π = {lead:.6g} m/rad",
                      next_kind="translational")
-            load_kind = "translational"
         elif p.kind == "rack-pinion":
             b.add(p.pinion_inertia, f"{label[i]}: pinion {_qty(p.pinion_inertia, 'kg*m^2')}", "pinion")
             b.spring(p.name or "rack_mesh", p.mesh_stiffness or math.inf, p.pinion_radius,
                      f"{label[i]}: mesh_stiffness at the pitch line, r = {p.pinion_radius:.6g} m",
                      next_kind="translational")
-            load_kind = "translational"
         elif p.kind == "belt":
             r = p.drive_pulley_radius
             b.add(p.drive_pulley_inertia, f"{label[i]}: drive pulley {_qty(p.drive_pulley_inertia, 'kg*m^2')}",
@@ -214,7 +206,6 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
             else:
                 kb, rule = math.inf, f"{label[i]}: rigid (no length; detail 'rigid')"
             b.spring(p.name or "belt", kb, r, rule + f", pulley radius {r:.6g} m", next_kind="translational")
-            load_kind = "translational"
             if p.arrangement == "end-driven":
                 r_i = p.idler_pulley_radius or r
                 belt_len = 2.0 * (p.length or 0.0) + math.pi * (r + r_i)
@@ -233,13 +224,10 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
                 b.current.name = b.unique("table")
             if p.kind == "table":
                 b.add(p.mass, f"{label[i]}: {_qty(p.mass, 'kg')}", "table")
-                table_masses.append(b.current.name)
             elif p.carriage_mass:
                 b.add(p.carriage_mass, f"{label[i]}: carriages {_qty(p.carriage_mass, 'kg')}", "table")
         elif p.kind in ("encoder", "scale"):
-            sensor_at.append((i, p, ""))
-            if p.kind == "encoder" and p.inertia:
-                sensor_at[-1] = (i, p, "pending-inertia")
+            sensor_at.append((i, p))
     for m, what in moving_mass_parts:
         b.bodies[-1].value += m
         b.bodies[-1].parts.append(what)
@@ -248,15 +236,14 @@ def derive(spec: "ComponentsSpec") -> ChainModel:
             body.name = b.unique(f"{b.springs[j - 1].name}_out" if j else "motor")
     for k, s in enumerate(b.springs):     # spring k joins bodies k and k + 1 (both named only now)
         s.between = (b.bodies[k].name, b.bodies[k + 1].name)
-    # encoder inertias
-    for i, p, mark in sensor_at:
-        if mark == "pending-inertia":
+    for i, p in sensor_at:         # encoder inertias, on the body they turn with
+        if p.kind == "encoder" and p.inertia:
             host = b.bodies[0] if p.mounting == "motor" else _last_rotational(b.bodies)
             host.value += p.inertia
             host.parts.append(f"{label[i]}: encoder {_qty(p.inertia, 'kg*m^2')}")
-    chain = ChainModel(b.bodies, b.springs, frictions, sensors, {}, x, stroke, spec.detail,
+    chain = ChainModel(b.bodies, b.springs, {}, {}, {}, x, stroke, spec.detail,
                        home={body.name: body.name for body in b.bodies})
-    hosts = [(i, p, *_host(b.bodies, p)) for i, p, _ in sensor_at]   # where each sensor reads, before merging
+    hosts = [(p, *_host(b.bodies, p)) for _, p in sensor_at]   # where each sensor reads, before merging
     _guides(spec, chain, label)
     _massless(chain)
     _reduce(spec, chain)
@@ -428,7 +415,7 @@ def _damp(spec: "ComponentsSpec", chain: ChainModel) -> None:
         s.rule += f"; damping 2ζ·k/ω, ζ = {spec.damping_ratio:g}, ω = 2π·{w / (2 * math.pi):.6g} Hz (its mode)"
 
 
-def _sensors(spec: "ComponentsSpec", chain: ChainModel, hosts: list[tuple[int, Any, str, float]]) -> None:
+def _sensors(spec: "ComponentsSpec", chain: ChainModel, hosts: list[tuple[Any, str, float]]) -> None:
     """Sensors on the bodies they ended up in: a sensor whose body was lumped into another reads through
     the rigid ratio between them (``ratio``, and ``stretch = "rotational"`` for an encoder on a
     translating body)."""
@@ -443,7 +430,7 @@ def _sensors(spec: "ComponentsSpec", chain: ChainModel, hosts: list[tuple[int, A
             entry.update(ratio=gain / host.gain, stretch=own)
         return entry
 
-    for _, p, walked, gain in hosts:
+    for p, walked, gain in hosts:
         if p.kind == "encoder":
             have_encoder = True
             entry = {**geared(walked, gain, "rotational"), "counts_per_revolution": p.resolution}
