@@ -24,7 +24,7 @@ from .mechanics import LumpedSpec
 from .parts import KINDS
 from .registry import register
 
-__all__ = ["ComponentsSpec", "PART_CLASSES", "STAGES", "DETAILS", "drive_defaults", "motor_constants",
+__all__ = ["ComponentsSpec", "PART_CLASSES", "STAGES", "DETAILS", "drive_defaults", "motor_drive_defaults", "motor_constants",
            "closest_parameters"]
 
 DETAILS = ("rigid", "2-mass", "full", "auto")
@@ -278,7 +278,12 @@ def motor_constants(motor: Any) -> dict[str, Any]:
 
 # --------------------------------------------------------------------------- drive from the motor
 def drive_defaults(spec: ComponentsSpec) -> dict[str, Any]:
-    """The drive's constants that the chain's motor implies (``[axes.X.drive]`` keys the file does not give).
+    """The drive's constants that the chain's motor implies (:func:`motor_drive_defaults` of its first part)."""
+    return motor_drive_defaults(spec.parts[0])
+
+
+def motor_drive_defaults(m: Any) -> dict[str, Any]:
+    """The drive's constants that a ``motor`` or ``linear-motor`` part implies (``[axes.X.drive]`` keys the file does not give).
 
     The drive's model is per phase, rms (``docs/components.md``): ``force_constant`` = kT per A rms (N·m/A,
     or N/A for a linear motor), ``back_emf_constant`` = the phase EMF rms per unit speed = kE_ll,rms/√3
@@ -287,7 +292,6 @@ def drive_defaults(spec: ComponentsSpec) -> dict[str, Any]:
     modulated inverter gives from its DC bus, U_ll,rms = U_dc/√2), ``pole_pairs`` or ``pole_pitch``.
     Nothing without the motor's torque (force) constant.
     """
-    m = spec.parts[0]
     linear = m.kind == "linear-motor"
     kt_value = m.force_constant if linear else m.torque_constant
     basis = m.force_constant_basis if linear else m.torque_constant_basis

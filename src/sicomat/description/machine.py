@@ -12,7 +12,7 @@ from .registry import MechanicsKind, spec_union
 from .motion import InterpolatorSpec, SetpointSpec
 from .servo import ControllerSpec, DriveSpec
 from . import mechanics as _mechanics, shorthands as _shorthands, components as _components  # noqa: F401  (register their types)
-from .components import ComponentsSpec, drive_defaults
+from .components import PART_CLASSES, ComponentsSpec, motor_drive_defaults
 from ..errors import ModelError
 
 __all__ = ["MechanicsSpec", "Axis", "Machine"]
@@ -44,30 +44,32 @@ class Axis(Spec):
     @model_validator(mode="before")
     @classmethod
     def _drive_from_motor(cls, data: Any) -> Any:
-        """A drive-chain axis's drive takes the motor's constants it does not give, and its tool is the
-        table (the load body) unless the file names one (docs/drive-chains.md)."""
-        if not isinstance(data, dict):
+        """A drive-chain axis's drive takes the motor's constants it does not give (docs/drive-chains.md).
+        Only the motor part is read here (the mechanics field validates the whole chain, once)."""
+        if not (isinstance(data, dict) and isinstance(data.get("drive"), dict)):
             return data
         mech = data.get("mechanics")
-        if not (isinstance(mech, dict) and mech.get("type") == "components"):
-            return data
-        try:
-            spec = ComponentsSpec.model_validate(mech)
-        except ValidationError:
+        parts = mech.get("parts") if isinstance(mech, dict) and mech.get("type") == "components" else None
+        first = parts[0] if isinstance(parts, list) and parts and isinstance(parts[0], dict) else None
+        if first is None or first.get("kind") not in ("motor", "linear-motor"):
             return data          # the mechanics field reports it, located
-        if data.get("tool") is None:   # a motor-encoder position loop would otherwise move in motor radians
-            data = {**data, "tool": spec.chain.bodies[-1].name}
-        if not isinstance(data.get("drive"), dict):
+        try:
+            motor = PART_CLASSES[first["kind"]].model_validate(first)
+        except ValidationError:
             return data
-        drive = {**drive_defaults(spec), **data["drive"]}
+        drive = {**motor_drive_defaults(motor), **data["drive"]}
         if "force_constant" not in drive:
-            motor = "force_constant" if spec.parts[0].kind == "linear-motor" else "torque_constant"
-            raise fail(f"missing: give the drive's force_constant, or the motor part's {motor} (and its basis) "
+            key = "force_constant" if first["kind"] == "linear-motor" else "torque_constant"
+            raise fail(f"missing: give the drive's force_constant, or the motor part's {key} (and its basis) "
                        "that it is taken from", "drive.force_constant", None)
         return {**data, "drive": drive}
 
     @model_validator(mode="after")
     def _references(self) -> "Axis":
+        if self.tool is None and isinstance(self.mechanics, ComponentsSpec):
+            # a drive chain's tool is its table (the load body): a motor-encoder position loop would otherwise
+            # move in motor radians (docs/drive-chains.md); set here, so dumps and saved files carry it
+            object.__setattr__(self, "tool", self.mechanics.chain.bodies[-1].name)
         lumped = self.mechanics.to_lumped()
         bodies, sensors, actuators = lumped.bodies, lumped.sensors, lumped.actuators
         if self.tool is not None and self.tool not in bodies:
