@@ -345,7 +345,8 @@ def _read_text(path: str | os.PathLike) -> str:
 def _translate(exc: ValidationError, source: str | None) -> ModelError:
     from .implied import missing_because_of_chain
 
-    errors = [e for e in exc.errors() if not missing_because_of_chain(e, exc.errors())] or exc.errors()
+    everything = exc.errors()
+    errors = [e for e in everything if not missing_because_of_chain(e, everything)] or everything
     first = errors[0]
     loc = [str(p) for p in first["loc"]]
     loc = [p for i, p in enumerate(loc) if not (i > 0 and p in _UNION_TAGS.get(loc[i - 1], ()))
