@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import ModelError
-from .size_checks import (CRITICAL_SPEED_FACTOR, LIMIT_TOLERANCE, Check, MotorRun, angle_coordinate_note, drive_checks,
+from .size_checks import (CRITICAL_SPEED_FACTOR, LIMIT_TOLERANCE, Check, MotorRun, drive_checks,
                           mass_ratio_note, motor_checks, motorless_checks, train_checks)
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -192,7 +192,6 @@ def _sized(machine: "Machine", loop: "ServoLoop", series: "TimeSeries", verdict:
         checks += train_checks(mech, run)
         if mech.parts[0].kind == "linear-motor":
             notes.append(mass_ratio_note(mech))
-        notes += angle_coordinate_note(mech, spec, loop.axis)
     else:
         checks = motorless_checks(loop, run) + checks
         notes.append(f"the mechanics is of type {mech.type!r}: the motor's and the drive train's limits need a "

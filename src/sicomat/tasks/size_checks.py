@@ -14,7 +14,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
 
 __all__ = ["Check", "MotorRun", "make_check", "drive_checks", "motor_checks", "train_checks", "motorless_checks",
-           "angle_coordinate_note", "mass_ratio_note", "CRITICAL_SPEED_FACTOR", "LIMIT_TOLERANCE"]
+           "mass_ratio_note", "CRITICAL_SPEED_FACTOR", "LIMIT_TOLERANCE"]
 
 CRITICAL_SPEED_FACTOR = 0.8
 """Fraction of the screw's first whirling speed that may be used (THK, "Permissible rotational speed":
@@ -65,23 +65,6 @@ class MotorRun:
 
     def rms(self, x: np.ndarray) -> float:
         return float(np.sqrt(np.mean(x[self.window] ** 2)))
-
-
-def angle_coordinate_note(mech: Any, spec: Any, axis: str) -> list[str]:
-    """A note when the axis coordinate is a rotation: no ``tool`` and a rotary encoder as the position sensor
-    make the move's distance, velocity and acceleration radians of the motor (the setpoint follows the sensor)."""
-    if spec.tool is not None or spec.controller is None:
-        return []
-    entry = mech.chain.sensors.get(spec.controller.position_sensor)
-    if entry is None:
-        return []
-    kinds = {b.name: b.kind for b in mech.chain.bodies}
-    if entry.get("stretch") != "rotational" and kinds.get(entry["body"]) != "rotational":
-        return []
-    table = mech.chain.bodies[-1].name
-    return [f"the axis coordinate is the angle of the position sensor {spec.controller.position_sensor!r} (no "
-            f"[axes.{axis}] tool): the move's distance and limits were read in rad, rad/s, rad/s²; set "
-            f"tool = {table!r} to move the table in metres"]
 
 
 def _linear(loop: "ServoLoop") -> bool:
