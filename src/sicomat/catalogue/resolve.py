@@ -7,13 +7,14 @@ is gone. Runs on the plain data, before validation (:func:`sicomat.io.modelfile.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping
+import os
+from typing import Any, Callable, Mapping, Sequence
 
 from ..description.parts import KINDS
 from ..errors import ModelError
 from .store import Catalogue, load_catalogue
 
-__all__ = ["resolve_parts", "uses_catalogue", "use_folders", "user_folders", "default_catalogue"]
+__all__ = ["resolve_parts", "use_folders", "default_catalogue"]
 
 _FOLDERS: list[str] = []
 
@@ -24,14 +25,10 @@ def use_folders(folders: "list[str] | tuple[str, ...]") -> None:
     _FOLDERS[:] = [str(f) for f in folders]
 
 
-def user_folders() -> list[str]:
-    """The folders given to :func:`use_folders`."""
-    return list(_FOLDERS)
-
-
-def default_catalogue() -> Catalogue:
-    """The catalogue model files' ids are looked up in: shipped, ``SICOMAT_CATALOG``, :func:`use_folders`."""
-    return load_catalogue(_FOLDERS)
+def default_catalogue(extra: "Sequence[str | os.PathLike[str]]" = ()) -> Catalogue:
+    """The catalogue model files' ids are looked up in: shipped, ``SICOMAT_CATALOG``, :func:`use_folders`
+    (then ``extra``: ``sicomat catalog list --catalog DIR``)."""
+    return load_catalogue([*_FOLDERS, *extra])
 
 
 def _component_parts(data: Mapping[str, Any]):
@@ -45,12 +42,6 @@ def _component_parts(data: Mapping[str, Any]):
         for i, part in enumerate(mech["parts"]):
             if isinstance(part, dict) and "id" in part and part.get("recorded") is not True:
                 yield axis, i, part   # a recorded part holds the entry's values as saved: not read again
-
-
-def uses_catalogue(data: Mapping[str, Any]) -> bool:
-    """Whether any ``components`` part of ``data`` names a catalogue ``id`` the loader looks up (not a
-    ``recorded`` one)."""
-    return next(_component_parts(data), None) is not None
 
 
 def resolve_parts(data: Mapping[str, Any], catalogue: Catalogue | Callable[[], Catalogue] | None = None, *,

@@ -20,10 +20,9 @@ CatalogOption = typer.Option(None, "--catalog", metavar="DIR", file_okay=False,
 
 
 def _catalogue(folders: Optional[List[Path]]):
-    from ..catalogue.resolve import user_folders
-    from ..catalogue.store import load_catalogue
+    from ..catalogue.resolve import default_catalogue
 
-    return load_catalogue([*user_folders(), *(folders or [])])   # sicomat --catalog A catalog list --catalog B
+    return default_catalogue(folders or [])   # sicomat --catalog A catalog list --catalog B
 
 
 @catalog_app.command("list")
