@@ -181,19 +181,11 @@ def _finite(x):
 
 @njit(cache=True)
 def rnea(ints, geo, chi, gravity, q, qd, qdd, tau):
-    """One state: ``tau`` (n,) filled; False (tau untouched) if a joint value is not finite."""
-    if not (_finite(q) and _finite(qd) and _finite(qdd)):
-        return False
-    nf = ints.shape[0]
-    rot = np.empty((nf, 3, 3))
-    pos = np.empty((nf, 3))
-    w = np.empty((nf + 1, 3))
-    wd = np.empty((nf + 1, 3))
-    vd = np.empty((nf + 1, 3))
-    f = np.empty((nf, 3))
-    n = np.empty((nf, 3))
-    _rnea_one(ints, geo, chi, gravity, q, qd, qdd, tau, rot, pos, w, wd, vd, f, n)
-    return True
+    """One state: ``tau`` (n,) filled; False (tau untouched) if a joint value is not finite. The batch
+    kernel on one-row views (contiguous: no copy)."""
+    n = q.shape[0]
+    return rnea_batch(ints, geo, chi, gravity, q.reshape(1, n), qd.reshape(1, n), qdd.reshape(1, n),
+                      tau.reshape(1, n))
 
 
 @njit(cache=True)
@@ -298,19 +290,10 @@ def _crba_one(ints, chi, rot, pos, out, jp, msp, mp):
 
 @njit(cache=True)
 def crba(ints, geo, chi, q, out):
-    """Inertia matrix of one state into ``out`` (n, n, zeroed here); False if ``q`` is not finite."""
-    if not _finite(q):
-        return False
-    nf = ints.shape[0]
-    rot = np.empty((nf, 3, 3))
-    pos = np.empty((nf, 3))
-    jp = np.empty((nf, 3, 3))
-    msp = np.empty((nf, 3))
-    mp = np.empty(nf)
-    _local(ints, geo, q, rot, pos)
-    out[:, :] = 0.0
-    _crba_one(ints, chi, rot, pos, out, jp, msp, mp)
-    return True
+    """Inertia matrix of one state into ``out`` (n, n, zeroed here); False if ``q`` is not finite. The batch
+    kernel on one-row views."""
+    n = q.shape[0]
+    return crba_batch(ints, geo, chi, q.reshape(1, n), out.reshape(1, n, n))
 
 
 @njit(cache=True)
