@@ -19,7 +19,7 @@ from pydantic import ConfigDict, Field, create_model, model_validator
 
 from . import motor_checks as mc
 from .chain import ChainModel, derive
-from .base import Frequency, Length, Name, Spec, fail
+from .base import Frequency, Name, Spec, fail, quantity
 from .mechanics import LumpedSpec
 from .parts import KINDS
 from .registry import register
@@ -95,23 +95,12 @@ class ComponentsSpec(Spec):
 
     type: Literal["components"]
     parts: list[Part] = Field(min_length=2)
-    position: Annotated[float, Field(ge=0)] | None = None
+    position: Annotated[float, quantity("length"), Field(ge=0)] | None = None
     detail: Literal["rigid", "2-mass", "full", "auto"] = "full"
     bandwidth: Frequency | None = None
     bandwidth_multiple: Annotated[float, Field(gt=1)] = 10.0
     damping_ratio: Annotated[float, Field(ge=0, lt=1)] = 0.02
     datasheet_tolerance: Annotated[float, Field(gt=0, le=1)] = mc.DATASHEET_TOLERANCE
-
-    @model_validator(mode="before")
-    @classmethod
-    def _position_units(cls, data: Any) -> Any:
-        if isinstance(data, dict) and isinstance(data.get("position"), str):
-            from .units import UNITS, parse_quantity
-            try:
-                data = {**data, "position": parse_quantity(data["position"], UNITS["length"])}
-            except ValueError as exc:
-                raise fail(str(exc), "position", data["position"]) from None
-        return data
 
     @model_validator(mode="after")
     def _check(self) -> "ComponentsSpec":
