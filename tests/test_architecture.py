@@ -31,7 +31,7 @@ FOUNDATION = {"errors", "budget", "progress"}
 # plots: figures of result objects, imported only lazily by a ``plot`` method (or by tasks/cli).
 # io (model file, atomic writes, CSV) needs only description: the stages from simulation up may use it,
 # their results write themselves through it (TimeSeries.to_csv → io.csv, save_figure → io.atomic).
-_CORE = {"foundation", "description", "catalogue", "lti", "mechanics", "motion", "servo"}
+_CORE = {"foundation", "description", "catalogue", "lti", "mechanics", "robotics", "motion", "servo"}
 _ANALYSES = _CORE | {"io"}
 ALLOWED: dict[str, set[str]] = {
     "foundation": set(),
@@ -41,9 +41,10 @@ ALLOWED: dict[str, set[str]] = {
     "motion": {"foundation", "description"},
     "lti": {"foundation"},
     "mechanics": {"foundation", "description", "lti"},
-    # beside mechanics (issue 13): its lowering will produce a Mechanics; the numeric core needs only errors
+    # beside mechanics (issue 13): its lowering produces a Mechanics (robotics.lowering.axis_mechanics, the
+    # one way from any machine axis to its mechanics, which the servo loop and the analyses above use)
     "robotics": {"foundation", "description", "lti", "mechanics"},
-    "servo": {"foundation", "description", "lti", "mechanics", "motion"},
+    "servo": {"foundation", "description", "lti", "mechanics", "motion", "robotics"},
     "simulation": _ANALYSES,
     "frequency": _ANALYSES,
     "tuning": _ANALYSES | {"simulation", "frequency"},

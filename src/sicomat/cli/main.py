@@ -18,6 +18,10 @@ from .catalog import catalog_app  # noqa: E402  (the command group lives in its 
 
 app.add_typer(catalog_app, name="catalog")
 
+from .robot import robot as _robot  # noqa: E402
+
+app.command(name="robot")(_robot)
+
 ModelArgument = typer.Argument(..., help="Model file (TOML).", dir_okay=False)
 
 
@@ -60,13 +64,13 @@ def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
     """Validate a model file and summarise its axes, dofs and couplings."""
     with guarded(model):
         from ..io.atomic import check_outputs
-        from ..mechanics.lumped import check_axis_mechanics
+        from ..robotics.lowering import axis_mechanics
         from .tables import check_payload, print_check
 
         check_outputs({"--write-lumped": (write_lumped, "model"), "--write": (write, "model")},
                       {"the model file": model})
         machine = load(model, set_)
-        mechanics = {name: check_axis_mechanics(name, axis.mechanics) for name, axis in machine.axes.items()}
+        mechanics = {name: axis_mechanics(machine, name) for name in machine.axes}
         payload = check_payload(machine, mechanics)
         if lumped or axis is not None:
             from ..tasks.lumped import drive_chain_payload
@@ -100,27 +104,48 @@ def check(model: Path = ModelArgument, set_: Optional[List[str]] = SetOption,
                     typer.echo(f"wrote the {what} to {payload[key]}")
 
 
+QOption = typer.Option(None, "--q", metavar="Q1,Q2,..",
+                       help="A [robot] machine's configuration: every joint variable in frame order, elastic "
+                            "joints included (m or rad, or with units: 150mm,30deg).")
+
+
 @app.command()
 def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
           set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
-          plot: Optional[Path] = PlotOption) -> None:
+          plot: Optional[Path] = PlotOption, q: Optional[str] = QOption) -> None:
     """Natural frequencies, damping ratios and mode shapes of an axis's mechanics."""
     with guarded(model):
         from ..io.atomic import check_outputs
-        from ..mechanics.lumped import check_axis_mechanics
+        from ..errors import ModelError
         from ..mechanics.modal import modal_analysis
+        from ..robotics.lowering import axis_mechanics
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
-        name = machine.axis_name(axis)
-        with progress_bar() as progress:
-            result = modal_analysis(check_axis_mechanics(name, machine.axes[name].mechanics), progress=progress)
+        where: dict = {}
+        if machine.robot is not None and axis is None:      # a robot: its structure, motors locked
+            from ..tasks.robot import locked_modes
+
+            name = None
+            result, where = locked_modes(machine, q)
+        else:
+            if q is not None:
+                if machine.robot is None:
+                    raise ModelError("--q sets a [robot] machine's configuration; this model has no [robot] "
+                                     "section", source="--q", value=q)
+                from ..tasks.robot import joint_values
+
+                machine = machine.model_copy(update={"robot": machine.robot.model_copy(
+                    update={"configuration": joint_values(machine.robot, q, "q").tolist()})})
+            name = machine.axis_name(axis)
+            with progress_bar() as progress:
+                result = modal_analysis(axis_mechanics(machine, name), progress=progress)
         if plot is not None:
             from ..plots.base import save_figure
 
             save_figure(result.plot(), plot)
         if json_:
-            emit_json({"axis": name, **result.to_dict()})
+            emit_json({"axis": name, **where, **result.to_dict()})
         else:
             from .tables import print_modal
 

@@ -19,7 +19,7 @@ def check_payload(machine: "Machine", mechanics: dict[str, "Mechanics"]) -> dict
     axes: dict[str, dict[str, Any]] = {}
     for name, mech in mechanics.items():
         axes[name] = {
-            "mechanics_type": machine.axes[name].mechanics.type,
+            "mechanics_type": _mechanics_type(machine, name),
             "n_dofs": mech.n,
             "n_states": 2 * mech.n,
             "dofs": [{"name": d.name, "kind": d.kind, "mass": float(mech.mass[i, i])}
@@ -38,6 +38,11 @@ def check_payload(machine: "Machine", mechanics: dict[str, "Mechanics"]) -> dict
             value = getattr(spec, block)
             axes[name][block] = _with_hz(value.model_dump(mode="json", exclude_none=True)) if value is not None else None
     return {"valid": True, "name": machine.name, "axes": axes}
+
+
+def _mechanics_type(machine: "Machine", axis: str) -> str:
+    mechanics = machine.axes[axis].mechanics
+    return mechanics.type if mechanics is not None else "robot"
 
 
 # the model file's frequency-typed keys: values in Hz under a name without a suffix
@@ -107,13 +112,14 @@ def print_check(source: str, payload: dict[str, Any]) -> None:
             console.print("  servo blocks: " + ", ".join(blocks))
 
 
-def print_modal(axis: str, result: "ModalResult") -> None:
-    """Print the modes of ``sicomat modal``."""
+def print_modal(axis: str | None, result: "ModalResult") -> None:
+    """Print the modes of ``sicomat modal`` (``axis`` None: a robot's structure, its motors locked)."""
     from rich.console import Console
     from rich.table import Table
 
     console = Console(highlight=False)
-    table = Table(title=f"axis {axis}: modes", title_justify="left")
+    title = f"axis {axis}: modes" if axis is not None else "robot, motors locked: modes"
+    table = Table(title=title, title_justify="left")
     for col in ("mode", "f (Hz)", "zeta", "f damped (Hz)", "f undamped (Hz)", "dominant dof", "participation"):
         table.add_column(col, justify="right")
     for k, m in enumerate(result.modes, 1):

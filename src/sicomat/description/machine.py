@@ -13,6 +13,7 @@ from .motion import InterpolatorSpec, SetpointSpec
 from .servo import ControllerSpec, DriveSpec
 from . import mechanics as _mechanics, shorthands as _shorthands, components as _components  # noqa: F401  (register their types)
 from .components import PART_CLASSES, ComponentsSpec, motor_drive_defaults
+from .robot import RobotSpec
 from ..errors import ModelError
 
 __all__ = ["MechanicsSpec", "Axis", "Machine"]
@@ -33,9 +34,13 @@ class Axis(Spec):
     ``tool`` names the body whose position is the axis coordinate (the load or tool point) used
     for the following error and to convert every feedback sensor into axis units; by default, the
     body of the controller's position sensor.
+
+    An axis of a machine with a ``[robot]`` section is one of its motorised joints: it has no
+    ``mechanics`` of its own (the robot is its mechanics), its sensors are the robot's and ``tool``
+    names the robot sensor that reads the axis coordinate (default: the joint's load side).
     """
 
-    mechanics: MechanicsSpec
+    mechanics: MechanicsSpec | None = None
     drive: DriveSpec | None = None
     controller: ControllerSpec | None = None
     trajectory: SetpointSpec | None = None
@@ -66,6 +71,8 @@ class Axis(Spec):
 
     @model_validator(mode="after")
     def _references(self) -> "Axis":
+        if self.mechanics is None:      # a robot's joint: checked by the machine, which knows the robot
+            return self
         if self.tool is None and isinstance(self.mechanics, ComponentsSpec):
             # a drive chain's tool is its table (the load body): a motor-encoder position loop would otherwise
             # move in motor radians (docs/drive-chains.md); set here, so dumps and saved files carry it
@@ -105,8 +112,38 @@ class Machine(Spec):
 
     name: str = ""
     description: str = ""
-    axes: dict[Name, Axis] = Field(min_length=1)
+    axes: dict[Name, Axis] = Field(default_factory=dict)
     interpolator: InterpolatorSpec = Field(default_factory=InterpolatorSpec)
+    robot: RobotSpec | None = None
+
+    @model_validator(mode="after")
+    def _axes(self) -> "Machine":
+        """Axes with their own mechanics, or the robot's motorised joints (every one an axis, in frame
+        order; an ``[axes.<joint>]`` table gives its drive, controller, trajectory and tool)."""
+        if self.robot is None:
+            if not self.axes:
+                raise fail("a machine needs at least one axis ([axes.<name>]) or a [robot] section", "axes", None)
+            for name, axis in self.axes.items():
+                if axis.mechanics is None:
+                    raise fail("missing: every axis needs [axes.<name>.mechanics] (or the machine a [robot] "
+                               "section whose motorised joint it is)", f"axes.{name}.mechanics", None)
+            return self
+        robot = self.robot
+        motors = robot.motor_names
+        if not motors:
+            raise fail("the robot has no motorised joint (mu = 1): its motorised joints are the machine's axes",
+                       "robot.frames", None)
+        for name, axis in self.axes.items():
+            if name not in motors:
+                raise fail("{value} is not a motorised joint of the robot; the axes of a robot are its motorised "
+                           "joints: {known}", f"axes.{name}", name, known=", ".join(motors))
+            if axis.mechanics is not None:
+                raise fail("an axis of a robot has no mechanics of its own: the [robot] section is its mechanics",
+                           f"axes.{name}.mechanics", None)
+            _check_robot_axis(robot, name, axis)
+        axes = {name: self.axes.get(name) or Axis() for name in motors}
+        object.__setattr__(self, "axes", axes)
+        return self
 
     def axis(self, name: str | None = None) -> Axis:
         """The axis called ``name``, or the first axis."""
@@ -120,3 +157,29 @@ class Machine(Spec):
         """The name of the axis ``name`` resolves to (the first axis when ``None``)."""
         self.axis(name)
         return name if name is not None else next(iter(self.axes))
+
+
+def _check_robot_axis(robot: RobotSpec, name: str, axis: Axis) -> None:
+    """The robot sensors an axis names exist and fit their use."""
+    sensors = robot.all_sensors()
+    known = ", ".join(sensors)
+    if axis.tool is not None:
+        if axis.tool not in sensors or sensors[axis.tool].kind != "position":
+            raise fail("unknown position sensor {value} for the axis coordinate; expected one of the robot's "
+                       "sensors: {known}", f"axes.{name}.tool", axis.tool, known=known)
+    if axis.drive is not None and axis.drive.actuator not in (None, name):
+        raise fail("the drive of a robot's axis drives its own joint {known}", f"axes.{name}.drive.actuator",
+                   axis.drive.actuator, known=repr(name))
+    c = axis.controller
+    if c is None:
+        return
+    for key in ("position_sensor", "velocity_sensor"):
+        sensor = getattr(c, key)
+        if sensor is not None and sensor not in sensors:
+            raise fail("unknown sensor {value}; expected one of the robot's sensors: {known}",
+                       f"axes.{name}.controller.{key}", sensor, known=known)
+    if sensors[c.position_sensor].kind != "position":
+        raise fail("the position loop needs a position sensor", f"axes.{name}.controller.position_sensor",
+                   c.position_sensor)
+    if axis.drive is None:
+        raise fail("a controller needs a drive to command; add [axes.<name>.drive]", f"axes.{name}.drive", None)

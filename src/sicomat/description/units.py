@@ -33,6 +33,7 @@ UNITS: dict[str, Unit] = {
     "mass": Unit("kg", "a mass (kg)"),
     "inertia": Unit("kg*m**2", "a moment of inertia (kg*m^2)"),
     "length": Unit("m", "a length (m)"),
+    "first_moment": Unit("kg*m", "a first moment of mass (kg*m)"),
     "angle": Unit("rad", "an angle (rad)"),
     "time": Unit("s", "a time (s)"),
     "frequency": Unit("Hz", "a frequency (Hz)"),

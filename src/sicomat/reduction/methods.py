@@ -9,7 +9,7 @@ its own name for it (the command line to ``--order``...; ``sicomat.cli._common.O
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Sequence
+from typing import Any, TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -18,6 +18,7 @@ from ..errors import ModelError
 if TYPE_CHECKING:  # pragma: no cover
     from ..description.machine import Axis, Machine
     from ..lti.plant import Plant
+    from ..mechanics.lumped import Mechanics
     from .error import ReductionResult
 
 __all__ = ["reduce", "METHODS", "default_transfer", "default_band", "names"]
@@ -46,7 +47,7 @@ def names(value: str | Sequence[str] | None, parameter: str, empty: str) -> list
     return found
 
 
-def default_transfer(axis: "Axis") -> tuple[list[str], list[str], str]:
+def default_transfer(axis: "Axis", mechanics: "Mechanics | None" = None) -> tuple[list[str], list[str], str]:
     """The transfer ``sicomat reduce`` reduces when none is chosen: ``(inputs, outputs, why)``.
 
     The one the loops close around: the drive's actuator (``drive.actuator``, or the mechanics'
@@ -54,8 +55,13 @@ def default_transfer(axis: "Axis") -> tuple[list[str], list[str], str]:
     sensor. Without a controller: the driven actuator (every actuator without a drive) to every
     position sensor (every sensor if there is none), so that metres are never mixed with m/s.
     """
-    lumped = axis.mechanics.to_lumped()
-    actuators, sensors = list(lumped.actuators), lumped.sensors
+    sensors: dict[str, Any]
+    if axis.mechanics is not None:
+        lumped = axis.mechanics.to_lumped()
+        actuators, sensors = list(lumped.actuators), dict(lumped.sensors)
+    else:                       # a robot's axis: its lowered mechanics (given) names them
+        assert mechanics is not None
+        actuators, sensors = [a.name for a in mechanics.actuators], {m.name: m for m in mechanics.sensors}
     if axis.drive is not None and actuators:
         inputs = [axis.drive.actuator or actuators[0]]
     else:
@@ -68,7 +74,7 @@ def default_transfer(axis: "Axis") -> tuple[list[str], list[str], str]:
     return inputs, outputs, f"the {'drive' if axis.drive is not None else 'actuators'} to the {what} (no controller)"
 
 
-def default_band(axis: "Axis") -> tuple[tuple[float, float] | None, str]:
+def default_band(axis: "Axis", mechanics: "Mechanics | None" = None) -> tuple[tuple[float, float] | None, str]:
     """The band of interest of ``sicomat reduce MODEL`` without ``--order``, ``--band`` or ``--keep``.
 
     0 Hz to the Nyquist frequency ``1/(2 Tv)`` of a sampled velocity loop: the controller acts up to
@@ -81,7 +87,9 @@ def default_band(axis: "Axis") -> tuple[tuple[float, float] | None, str]:
     ctrl = axis.controller
     if ctrl is not None and ctrl.velocity_loop == "discrete":
         return (0.0, 0.5 / ctrl.velocity_period), "the velocity loop's Nyquist frequency"
-    f_meca = build_mechanics(axis.mechanics).modes().f_meca_hz
+    mech = build_mechanics(axis.mechanics) if axis.mechanics is not None else mechanics
+    assert mech is not None     # a robot's axis comes with its lowered mechanics
+    f_meca = mech.modes().f_meca_hz
     if f_meca is None:
         return None, "a rigid mechanics"
     return (0.0, 10.0 * f_meca), "10 × f_meca"
@@ -90,7 +98,7 @@ def default_band(axis: "Axis") -> tuple[tuple[float, float] | None, str]:
 def _tool(axis: "Axis") -> str | None:
     if axis.tool is not None:
         return axis.tool
-    if axis.controller is not None:
+    if axis.controller is not None and axis.mechanics is not None:
         lumped = axis.mechanics.to_lumped()
         sensor = lumped.sensors.get(axis.controller.position_sensor)
         return sensor.body if sensor is not None else None
@@ -177,16 +185,16 @@ def reduce(model: "Machine | Plant", method: str = "balanced", order: int | None
         if method == "physical":
             raise ModelError("the physical method regroups bodies: give a machine, not a state space",
                              path="method", value=method)
-        plant, ax, machine, name = model, None, None, None
+        plant, ax, machine, name, mech = model, None, None, None, None
     else:
         machine = model
         name = machine.axis_name(axis)
         ax = machine.axes[name]
-        from ..mechanics.lumped import check_axis_mechanics
+        from ..robotics.lowering import axis_mechanics
 
-        check_axis_mechanics(name, ax.mechanics)     # a reduction of unresolvable poles means nothing
+        mech = axis_mechanics(machine, name)     # checked: a reduction of unresolvable poles means nothing
         if ins is None or outs is None:
-            default_ins, default_outs, why = default_transfer(ax)
+            default_ins, default_outs, why = default_transfer(ax, mech)
             chosen = [f"{parameter} {','.join(found)}" for parameter, given, found in
                       (("inputs", ins, default_ins), ("outputs", outs, default_outs)) if given is None]
             notes.append(f"{' and '.join(chosen)} by default ({why})")
@@ -199,6 +207,9 @@ def reduce(model: "Machine | Plant", method: str = "balanced", order: int | None
 
             # a state space was refused above for this method: the machine, its axis and its name are set
             assert ax is not None and machine is not None and name is not None
+            if ax.mechanics is None:
+                raise ModelError("physical regrouping regroups lumped bodies; a robot's axis has a full mass "
+                                 "matrix (use modal or balanced reduction)", path="method", value=method)
             result = physical_reduction(ax.mechanics, keep_list, order=order, band_hz=band_hz, tool=_tool(ax),
                                         inputs=ins, outputs=outs)
             assert result.spec is not None   # a physical reduction always gives the reduced mechanics table
@@ -206,14 +217,12 @@ def reduce(model: "Machine | Plant", method: str = "balanced", order: int | None
                                                                        merged_into=result.merged_into),
                                        notes=(*notes, *result.notes))
         if plant is None:
-            from ..mechanics.lumped import build_mechanics
-
-            assert ax is not None            # no plant given: it comes from the machine's axis
-            plant = build_mechanics(ax.mechanics).state_space()
+            assert ax is not None and mech is not None   # no plant given: it comes from the machine's axis
+            plant = mech.state_space()
         gramian_band = band_hz           # a band given by the caller also selects the partial Gramians
         if order is None:
             if band_hz is None:
-                band_hz, why = default_band(ax) if ax is not None else (None, "no band given")
+                band_hz, why = default_band(ax, mech) if ax is not None else (None, "no band given")
                 if band_hz is None:
                     order = plant.n_states
                     notes.append(f"no order or band given: {why}, every state kept")

@@ -3,86 +3,20 @@ frames (Khalil–Kleinfinger modified Denavit–Hartenberg, SYMORO's field names
 
 from __future__ import annotations
 
-import math
 import typing
 from dataclasses import dataclass, field
-from numbers import Integral, Real
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ..description.robot_table import (FIXED, FRAME_FIELDS, GEOMETRY_FIELDS, PARAMETER_FIELDS,
+                                       check_frame, check_gravity)
 from ..errors import ModelError
 
 if typing.TYPE_CHECKING:
     from .base import BaseParameters
 
 __all__ = ["MDHRobot", "FRAME_FIELDS", "PARAMETER_FIELDS"]
-
-GEOMETRY_FIELDS = ("gamma", "b", "alpha", "d", "theta", "r")
-PARAMETER_FIELDS = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M", "IA", "FV", "FS")
-"""The 13 standard parameters of a frame's link, in the order of :meth:`MDHRobot.standard_parameters`."""
-FRAME_FIELDS = ("ant", "sigma", "mu", *GEOMETRY_FIELDS, "eta", "k", *PARAMETER_FIELDS)
-"""Every key a row of the table may hold (``ant`` and ``sigma`` are required, the rest default to 0)."""
-
-REVOLUTE, PRISMATIC, FIXED = 0, 1, 2
-# Relative tolerance of the inertia check: the tensor about the centre of mass is computed as a
-# difference J_O - (|MS|^2 I - MS MS^T)/M whose rounding is a few ulps of its terms; 1e-12 of the
-# largest term accepts a point mass (exact zero tensor) written with rounded decimals and rejects
-# any tensor that is wrong by a physically meaningful amount.
-_INERTIA_RTOL = 1e-12
-
-
-def _where(row: int, name: str) -> str:
-    return f"frames[{row}].{name}"
-
-
-def _error(row: int, name: str, message: str, value: object = None) -> ModelError:
-    return ModelError(f"frame {row + 1}: {message}", path=_where(row, name), value=value,
-                      has_value=value is not None)
-
-
-def _integer(row: int, name: str, value: object) -> int:
-    if isinstance(value, bool) or not isinstance(value, Integral):
-        if isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(float(value)) \
-                and float(value).is_integer():
-            return int(float(value))
-        raise _error(row, name, f"{name} must be an integer", value)
-    return int(value)
-
-
-def _number(row: int, name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, Real):
-        raise _error(row, name, f"{name} must be a number", value)
-    number = float(value)
-    if not math.isfinite(number):
-        raise _error(row, name, f"{name} must be finite", value)
-    return number
-
-
-def _check_inertia(row: int, chi: np.ndarray) -> None:
-    """The link's inertia tensor about its centre of mass must be positive semi-definite.
-
-    The triangle inequality of the principal moments (I1 + I2 >= I3, true of any real body) is not
-    required: planar models commonly give only ``ZZ``, which is harmless for their dynamics."""
-    xx, xy, xz, yy, yz, zz, mx, my, mz, mass = chi[:10]
-    j_origin = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-    ms = np.array([mx, my, mz])
-    if mass == 0.0:
-        for name, value in zip(("MX", "MY", "MZ"), ms):
-            if value != 0.0:
-                raise _error(row, name, f"a massless link (M = 0) has no first moment, but {name} != 0",
-                             float(value))
-        j_com = j_origin
-        scale = float(np.max(np.abs(j_origin)))
-    else:
-        shift = (ms @ ms * np.eye(3) - np.outer(ms, ms)) / mass
-        j_com = j_origin - shift
-        scale = max(float(np.max(np.abs(j_origin))), float(np.max(np.abs(shift))))
-    moments = np.linalg.eigvalsh(j_com)
-    tol = _INERTIA_RTOL * scale
-    if moments[0] < -tol:
-        raise _error(row, "XX..ZZ", "the inertia tensor XX..ZZ about the centre of mass (J_O - M(c^2 I - c c^T), "
-                     f"c = MS/M) is not positive semi-definite: principal moments {moments.tolist()}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,10 +107,10 @@ class MDHRobot:
             raise ModelError("the robot's frames must be a list of tables, one per frame", path="frames")
         if len(frames) == 0:
             raise ModelError("the robot has no frames", path="frames")
-        g = _gravity(gravity)
+        g = check_gravity(gravity)
         columns: dict[str, list[float]] = {name: [] for name in FRAME_FIELDS}
         for row, frame in enumerate(frames):
-            values = _row(row, frame)
+            values = check_frame(row, frame)
             for name in FRAME_FIELDS:
                 columns[name].append(values[name])
         chi = np.array([[columns[name][row] for name in PARAMETER_FIELDS] for row in range(len(frames))],
@@ -253,55 +187,3 @@ class MDHRobot:
         return base_parameters(self, **options)
 
 
-def _gravity(gravity: object) -> np.ndarray:
-    try:
-        g = np.asarray(gravity, dtype=float)
-    except (TypeError, ValueError):
-        raise ModelError("gravity must be 3 numbers (m/s^2, base frame)", path="gravity", value=gravity) from None
-    if g.shape != (3,) or not np.all(np.isfinite(g)):
-        raise ModelError("gravity must be 3 finite numbers (m/s^2, base frame)", path="gravity", value=gravity)
-    return g
-
-
-def _row(row: int, frame: object) -> dict[str, float]:
-    """One row checked: every key known, every value of its kind, the flags consistent."""
-    j = row + 1
-    if not isinstance(frame, Mapping):
-        raise ModelError(f"frame {j}: each frame is a table of fields", path=f"frames[{row}]", value=frame)
-    for key in frame:
-        if key not in FRAME_FIELDS:
-            raise _error(row, str(key), f"unknown field {key!r}; expected one of {', '.join(FRAME_FIELDS)}")
-    for key in ("ant", "sigma"):
-        if key not in frame:
-            raise _error(row, key, f"the field {key!r} is required")
-    values: dict[str, float] = {}
-    ant = _integer(row, "ant", frame["ant"])
-    if not 0 <= ant < j:
-        raise _error(row, "ant", f"the antecedent must be a frame before frame {j} (0 = base .. {j - 1})", ant)
-    sigma = _integer(row, "sigma", frame["sigma"])
-    if sigma not in (REVOLUTE, PRISMATIC, FIXED):
-        raise _error(row, "sigma", "sigma must be 0 (revolute), 1 (prismatic) or 2 (fixed)", sigma)
-    values.update(ant=ant, sigma=sigma)
-    for key in ("mu", "eta"):
-        flag = _integer(row, key, frame.get(key, 0))
-        if flag not in (0, 1):
-            raise _error(row, key, f"{key} must be 0 or 1", flag)
-        values[key] = flag
-    if values["eta"] == 1 and values["mu"] == 1:
-        raise _error(row, "mu", "an elastic joint (eta = 1) cannot be motorised (mu = 1): "
-                     "put the motor on its own frame before the elastic one", 1)
-    if sigma == FIXED and values["mu"] == 1:
-        raise _error(row, "mu", "a fixed frame (sigma = 2) has no joint to motorise", 1)
-    if sigma == FIXED and values["eta"] == 1:
-        raise _error(row, "eta", "a fixed frame (sigma = 2) has no joint to be elastic", 1)
-    for key in (*GEOMETRY_FIELDS, "k", *PARAMETER_FIELDS):
-        values[key] = _number(row, key, frame.get(key, 0.0))
-    for key in ("M", "k", "IA", "FV", "FS"):
-        if values[key] < 0.0:
-            raise _error(row, key, f"{key} must not be negative", values[key])
-    if sigma == FIXED:
-        for key in ("IA", "FV", "FS", "k"):
-            if values[key] != 0.0:
-                raise _error(row, key, f"a fixed frame (sigma = 2) has no joint: {key} must be 0", values[key])
-    _check_inertia(row, np.array([values[name] for name in PARAMETER_FIELDS]))
-    return values

@@ -106,9 +106,9 @@ def build_servo_loop(machine: "Machine", axis: str | None = None) -> ServoLoop:
         missing = "controller" if spec.controller is None else "drive"
         raise ModelError(f"the axis has no {missing}; a servo loop needs [axes.{name}.drive] and "
                          f"[axes.{name}.controller]", path=f"axes.{name}.{missing}")
-    from ..mechanics.lumped import check_axis_mechanics
+    from ..robotics.lowering import axis_mechanics
 
-    mech = check_axis_mechanics(name, spec.mechanics)   # the loop's analyses need resolvable poles
+    mech = axis_mechanics(machine, name)   # checked: the loop's analyses need resolvable poles
     if not mech.actuators:
         raise ModelError("the mechanics has no actuator for the drive to command",
                          path=f"axes.{name}.mechanics.actuators")
@@ -117,7 +117,9 @@ def build_servo_loop(machine: "Machine", axis: str | None = None) -> ServoLoop:
     act = mech.actuator(actuator)
     pos_sensor = mech.sensor(ctrl.position_sensor)
     vel_sensor = mech.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
-    if spec.tool is not None:
+    if spec.mechanics is None and machine.robot is not None:     # a robot's axis: its tool is a robot sensor
+        tool = np.array(mech.sensor(spec.tool or machine.robot.tool_sensor(name)).vector)
+    elif spec.tool is not None:
         tool = np.zeros(mech.n)
         tool[mech.index(spec.tool)] = 1.0
     else:

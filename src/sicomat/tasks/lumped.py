@@ -30,8 +30,9 @@ def drive_chain_payload(machine: "Machine", axis: str) -> dict[str, Any]:
     spec = machine.axes[axis]
     mech = spec.mechanics
     if not isinstance(mech, ComponentsSpec):
-        return {"derived": False, "mechanics_type": mech.type,
-                "note": f"mechanics type {mech.type!r} is not a drive chain: it is already lumped (its bodies "
+        kind = mech.type if mech is not None else "robot"
+        return {"derived": False, "mechanics_type": kind,
+                "note": f"mechanics type {kind!r} is not a drive chain: it is already lumped (its bodies "
                         "and couplings are the ones listed above)"}
     implied = drive_defaults(mech)
     drive = spec.drive

@@ -101,7 +101,7 @@ def map_stroke(machine: "Machine", axis: str | None = None) -> tuple[str, float]
     if not isinstance(spec, ComponentsSpec):
         raise ModelError("a mode map moves the table of a 'components' drive chain over its stroke; this axis's "
                          "mechanics has no position to vary (its modes: sicomat modal)", path=f"{where}.type",
-                         value=spec.type)
+                         value=spec.type if spec is not None else "robot")
     if spec.detail == "rigid":
         raise ModelError("detail 'rigid' keeps no compliance, so there is no mode to map; choose 'full', "
                          "'2-mass' or 'auto'", path=f"{where}.detail", value=spec.detail)

@@ -194,6 +194,6 @@ def _sized(machine: "Machine", loop: "ServoLoop", series: "TimeSeries", verdict:
             notes.append(mass_ratio_note(mech))
     else:
         checks = motorless_checks(loop, run) + checks
-        notes.append(f"the mechanics is of type {mech.type!r}: the motor's and the drive train's limits need a "
+        notes.append(f"the mechanics is of type {mech.type if mech is not None else 'robot'!r}: the motor's and the drive train's limits need a "
                      "'components' chain with a motor part; only the drive's limits were checked")
     return SizingResult(loop.axis, _ordered(checks), verdict, move, notes=tuple(notes))

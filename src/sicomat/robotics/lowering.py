@@ -1,0 +1,208 @@
+"""A robot machine lowered into the :class:`~sicomat.mechanics.Mechanics` every analysis consumes: the
+MDH model linearised about a configuration (a full, configuration-dependent M), and the one function that
+gives any machine axis its mechanics (:func:`axis_mechanics`).
+
+Linearisation about ``q0`` at rest (``q̇ = 0``): ``A(q0) δq̈ + D δq̇ + (K + ∂g/∂q) δq = B u`` with ``A`` the
+inertia matrix (rotor inertias included), ``D`` the joints' viscous coefficients ``FV`` (on an elastic
+joint the transmission's damping, on a motorised one the guides' or bearings' friction), ``K`` the elastic
+joints' stiffnesses and ``∂g/∂q`` the gravity stiffness (the Hessian of the potential energy). The
+constant load ``g(q0) + K q0`` is the preload the motors hold; it does not enter the linear model.
+Coriolis and centrifugal terms vanish at rest. Coulomb friction ``FS`` of a joint becomes a friction
+link on that joint (stick–slip in simulation). Decisions: ``docs/robotics.md``, "Into the rest of SICOMAT".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from ..description.robot_table import PRISMATIC
+from ..errors import ModelError
+from ..mechanics.lumped import Dof, Link, Load, Measurement, Mechanics
+from .table import MDHRobot
+
+if TYPE_CHECKING:
+    from ..description.machine import Machine
+    from ..description.robot import RobotSpec
+
+__all__ = ["Linearization", "robot_model", "linearize", "gravity_stiffness", "robot_mechanics",
+           "axis_mechanics", "configuration"]
+
+# Gravity stiffness by central differences with one Richardson step: truncation O(h^4) of the torque's
+# fifth derivative (h = 1e-3 rad or m on a machine of metres: ~1e-12 of the torque scale) and rounding
+# ~eps |g| / h = 1e-13 of it; both far below the 1e-9 the tests ask of the whole linear model.
+_GRAVITY_STEP = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class Linearization:
+    """The matrices of a robot linearised at ``q`` (joint order), SI units."""
+
+    q: np.ndarray
+    mass: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray
+    gravity_stiffness: np.ndarray
+
+
+def robot_model(spec: "RobotSpec") -> MDHRobot:
+    """The numeric robot of a model file's ``[robot]`` section (validated there already)."""
+    return MDHRobot.from_table([frame.table_row() for frame in spec.frames], gravity=spec.gravity)
+
+
+def configuration(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" = None) -> np.ndarray:
+    """The joint values to linearise about: ``q`` when given (checked), else the section's
+    ``configuration``, else zeros."""
+    n = len(spec.joint_names)
+    if q is None:
+        return np.array(spec.configuration if spec.configuration is not None else np.zeros(n), dtype=float)
+    values = np.asarray(q, dtype=float)
+    if values.shape != (n,) or not np.all(np.isfinite(values)):
+        raise ModelError(f"expected {n} finite joint values (every joint in frame order: "
+                         f"{', '.join(spec.joint_names)})", path="robot.configuration", value=list(np.ravel(q)))
+    return values
+
+
+def gravity_stiffness(robot: MDHRobot, q: np.ndarray) -> np.ndarray:
+    """``∂g/∂q`` at ``q``: the derivative of the gravity torques ``g(q) = inverse_dynamics(q, 0, 0)``
+    (Coulomb friction is 0 at rest), symmetric (a Hessian); zeros without gravity."""
+    n = robot.n_joints
+    if not np.any(robot.gravity):
+        return np.zeros((n, n))
+    def derivative(h: float) -> np.ndarray:
+        states = np.vstack([q + h * e for e in np.eye(n)] + [q - h * e for e in np.eye(n)])
+        tau = robot.inverse_dynamics_batch(states, np.zeros_like(states), np.zeros_like(states))
+        return ((tau[:n] - tau[n:]) / (2.0 * h)).T        # column i: ∂g/∂q_i
+
+    h = _GRAVITY_STEP
+    jac = (4.0 * derivative(h / 2) - derivative(h)) / 3.0
+    return 0.5 * (jac + jac.T)
+
+
+def linearize(robot: MDHRobot, q: "Sequence[float] | np.ndarray") -> Linearization:
+    """M, D, K of ``robot`` at rest at ``q``; see the module's docstring.
+
+    Examples
+    --------
+    >>> robot = MDHRobot.from_table([{"ant": 0, "sigma": 1, "mu": 1, "IA": 2.0},
+    ...                              {"ant": 1, "sigma": 1, "eta": 1, "k": 100.0, "M": 3.0}], gravity=(0, 0, 0))
+    >>> lin = linearize(robot, [0.0, 0.0])
+    >>> lin.mass.tolist(), lin.stiffness.tolist()
+    ([[5.0, 3.0], [3.0, 3.0]], [[0.0, 0.0], [0.0, 100.0]])
+    """
+    q0 = np.asarray(q, dtype=float)
+    mass = robot.inertia_matrix(q0)
+    mass = 0.5 * (mass + mass.T)
+    rows = robot.joint_frames
+    damping = np.diag(robot.chi[rows, 11])
+    elastic = robot.eta[rows] == 1
+    stiffness = np.diag(np.where(elastic, robot.k[rows], 0.0))
+    kg = gravity_stiffness(robot, q0)
+    return Linearization(q=q0, mass=mass, damping=damping, stiffness=stiffness + kg, gravity_stiffness=kg)
+
+
+def robot_mechanics(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" = None, *,
+                    free: Sequence[str] | None = None, actuators: Sequence[str] | None = None) -> Mechanics:
+    """The robot of ``spec`` linearised at ``q`` as a :class:`Mechanics` in joint coordinates.
+
+    Parameters
+    ----------
+    spec : RobotSpec
+    q : sequence of float, optional
+        Every joint value in frame order (default: the section's ``configuration``).
+    free : sequence of str, optional
+        The joints kept as degrees of freedom (default: all); the others are locked at ``q``.
+    actuators : sequence of str, optional
+        The motorised joints that get an actuator (default: every free motorised joint); a joint's
+        actuator applies its generalised force (N on a prismatic joint, N·m on a revolute one).
+
+    Returns
+    -------
+    Mechanics
+        Dofs named after the joints; the sensors of :meth:`RobotSpec.all_sensors` restricted to the free
+        joints (a locked joint reads as a constant, so it drops out of the linear model); couplings
+        = the elastic joints' springs (and the gravity stiffness when there is one); frictions = the
+        viscous and Coulomb friction of the free rigid joints.
+
+    Raises
+    ------
+    ModelError
+        A configuration of the wrong length, an unknown joint, a linear model whose stiffness is not
+        positive semi-definite (an equilibrium that gravity makes unstable with the motors locked).
+    """
+    robot = robot_model(spec)
+    names = spec.joint_names
+    q0 = configuration(spec, q)
+    keep_names = list(names if free is None else free)
+    for name in keep_names:
+        if name not in names:
+            raise ModelError(f"unknown joint {name!r}; expected one of {', '.join(names)}", path="robot.frames")
+    keep = [names.index(name) for name in keep_names]
+    if not keep:
+        raise ModelError("no degree of freedom is left free", path="robot.frames")
+    lin = linearize(robot, q0)
+    sub = np.ix_(keep, keep)
+    M, D, K, Kg = lin.mass[sub], lin.damping[sub], lin.stiffness[sub], lin.gravity_stiffness[sub]
+    n = len(keep)
+    rows = robot.joint_frames[keep]
+    kinds = ["translational" if robot.sigma[row] == PRISMATIC else "rotational" for row in rows]
+    dofs = tuple(Dof(name, kind) for name, kind in zip(keep_names, kinds))  # type: ignore[arg-type]
+    eye = np.eye(n)
+    elastic = [i for i, row in enumerate(rows) if robot.eta[row] == 1]
+    rigid = [i for i, row in enumerate(rows) if robot.eta[row] == 0]
+    springs = [Link(keep_names[i], eye[i].copy(), kinds[i], stiffness=float(robot.k[rows[i]]),  # type: ignore[arg-type]
+                    damping=float(robot.chi[rows[i], 11])) for i in elastic]
+    scale = max(float(np.max(np.abs(K), initial=0.0)), 1e-300)
+    if np.max(np.abs(Kg), initial=0.0) > 1e-12 * scale:
+        lowest = float(np.linalg.eigvalsh(K)[0])
+        if lowest < -1e-9 * scale:
+            raise ModelError(f"the linear model at this configuration has a negative stiffness (eigenvalue "
+                             f"{lowest:.3g}): gravity makes the equilibrium unstable with the motors locked",
+                             path="robot.configuration", value=q0.tolist())
+        couplings = None        # springs and gravity stiffness together: K split into its eigen-components
+    else:
+        couplings = springs
+    frictions = [Link(f"{keep_names[i]}_friction", eye[i].copy(), kinds[i],  # type: ignore[arg-type]
+                      damping=float(robot.chi[rows[i], 11]), coulomb=float(robot.chi[rows[i], 12]),
+                      static=float(robot.chi[rows[i], 12]))
+                 for i in rigid if robot.chi[rows[i], 11] > 0 or robot.chi[rows[i], 12] > 0]
+    motors = [name for name in spec.motor_names if name in keep_names] if actuators is None else list(actuators)
+    loads = []
+    for name in motors:
+        if name not in keep_names or name not in spec.motor_names:
+            raise ModelError(f"{name!r} is not a free motorised joint", path="robot.frames")
+        i = keep_names.index(name)
+        loads.append(Load(name, eye[i].copy(), kinds[i]))  # type: ignore[arg-type]
+    sensors = []
+    for name, sensor in spec.all_sensors().items():
+        vector = np.zeros(n)
+        for joint in sensor.joints:
+            if joint in keep_names:
+                vector[keep_names.index(joint)] += 1.0
+        if not np.any(vector):
+            continue
+        unit = spec.joint_kind(sensor.joints[0])
+        sensors.append(Measurement(name, vector, sensor.kind, unit, step=sensor.step))
+    return Mechanics.from_matrices(dofs, M, D, K, actuators=loads, sensors=sensors, couplings=couplings,
+                                   frictions=frictions)
+
+
+def axis_mechanics(machine: "Machine", axis: str | None = None) -> Mechanics:
+    """The mechanics of one axis of ``machine``, checked: an axis's own mechanics description lowered
+    (:func:`sicomat.mechanics.lumped.check_axis_mechanics`), or for a robot's axis the robot linearised at
+    its configuration with the other motorised joints locked (held by their servo loops, taken as rigid)
+    and the elastic joints free — the decoupled model each axis is tuned on."""
+    from ..mechanics.conditioning import check_resolvable
+    from ..mechanics.lumped import check_axis_mechanics
+
+    name = machine.axis_name(axis)
+    spec = machine.axes[name]
+    if machine.robot is None or spec.mechanics is not None:
+        return check_axis_mechanics(name, spec.mechanics)
+    robot = machine.robot
+    free = [j for j in robot.joint_names if j == name or j not in robot.motor_names]
+    mech = robot_mechanics(robot, free=free)
+    check_resolvable(mech)
+    return mech
