@@ -104,7 +104,8 @@ def linearize(robot: MDHRobot, q: "Sequence[float] | np.ndarray") -> Linearizati
 
 
 def robot_mechanics(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" = None, *,
-                    free: Sequence[str] | None = None, actuators: Sequence[str] | None = None) -> Mechanics:
+                    free: Sequence[str] | None = None, actuators: Sequence[str] | None = None,
+                    gravity: bool = True) -> Mechanics:
     """The robot of ``spec`` linearised at ``q`` as a :class:`Mechanics` in joint coordinates.
 
     Parameters
@@ -117,6 +118,10 @@ def robot_mechanics(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" 
     actuators : sequence of str, optional
         The motorised joints that get an actuator (default: every free motorised joint); a joint's
         actuator applies its generalised force (N on a prismatic joint, N·m on a revolute one).
+    gravity : bool
+        Keep the gravity stiffness ``∂g/∂q`` (default). ``False``: gravity is taken as compensated by the
+        controller (a gravity feedforward, or a counterbalanced vertical axis), so neither its load nor its
+        stiffness enters the linear model — what a servo axis is tuned on (``docs/robotics.md``).
 
     Returns
     -------
@@ -145,6 +150,8 @@ def robot_mechanics(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" 
     lin = linearize(robot, q0)
     sub = np.ix_(keep, keep)
     M, D, K, Kg = lin.mass[sub], lin.damping[sub], lin.stiffness[sub], lin.gravity_stiffness[sub]
+    if not gravity:
+        K, Kg = K - Kg, np.zeros_like(Kg)
     n = len(keep)
     rows = robot.joint_frames[keep]
     kinds = ["translational" if robot.sigma[row] == PRISMATIC else "rotational" for row in rows]
@@ -192,8 +199,10 @@ def robot_mechanics(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" 
 def axis_mechanics(machine: "Machine", axis: str | None = None) -> Mechanics:
     """The mechanics of one axis of ``machine``, checked: an axis's own mechanics description lowered
     (:func:`sicomat.mechanics.lumped.check_axis_mechanics`), or for a robot's axis the robot linearised at
-    its configuration with the other motorised joints locked (held by their servo loops, taken as rigid)
-    and the elastic joints free — the decoupled model each axis is tuned on."""
+    its configuration with the other motorised joints locked (held by their servo loops, taken as rigid),
+    the elastic joints free and gravity compensated by the controller — the decoupled model each axis is
+    tuned on (with gravity, a joint whose motor is free is an inverted pendulum the loop must hold, and its
+    gravity torque a load the integral action or a feedforward carries; ``docs/robotics.md``)."""
     from ..mechanics.conditioning import check_resolvable
     from ..mechanics.lumped import check_axis_mechanics
 
@@ -203,6 +212,6 @@ def axis_mechanics(machine: "Machine", axis: str | None = None) -> Mechanics:
         return check_axis_mechanics(name, spec.mechanics)
     robot = machine.robot
     free = [j for j in robot.joint_names if j == name or j not in robot.motor_names]
-    mech = robot_mechanics(robot, free=free)
+    mech = robot_mechanics(robot, free=free, gravity=False)
     check_resolvable(mech)
     return mech
