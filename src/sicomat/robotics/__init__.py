@@ -5,6 +5,8 @@ from .base import BaseParameters, base_parameters
 from .dynamics import (direct_dynamics, inertia_matrix, inverse_dynamics, inverse_dynamics_batch, regressor,
                        regressor_batch)
 from .dynamics import inertia_matrix_batch
+from .elastic import (HybridDynamics, elastic_direct_dynamics, elastic_joints, elastic_torques, hybrid_dynamics,
+                      rigid_joints)
 from .geometry import jacobian, transform, transforms
 from .table import FRAME_FIELDS, PARAMETER_FIELDS, MDHRobot
 
@@ -24,4 +26,10 @@ __all__ = [
     "regressor_batch",
     "base_parameters",
     "BaseParameters",
+    "hybrid_dynamics",
+    "HybridDynamics",
+    "elastic_direct_dynamics",
+    "elastic_torques",
+    "elastic_joints",
+    "rigid_joints",
 ]
