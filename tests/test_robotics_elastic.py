@@ -202,3 +202,90 @@ def test_bad_arguments_and_a_massless_elastic_joint():
     free = MDHRobot.from_table([{"ant": 0, "sigma": 1, "mu": 1, "M": 1.0}, {"ant": 1, "sigma": 1, "eta": 1, "k": 1.0}])
     with pytest.raises(ModelError, match="singular"):
         hybrid_dynamics(free, [0.0, 0.0], [0.0, 0.0], [1.0])
+
+
+# --------------------------------------------------------------------------- stiffness columns (notes §2.6)
+@pytest.mark.parametrize("seed,tree", CASES[:6])
+def test_the_stiffness_columns_close_the_elastic_rows(seed, tree):
+    """``Phi_ext chi_ext`` is Newton–Euler plus ``k q`` on the elastic rows: at the hybrid model's
+    accelerations those rows are 0 (the elastic joints' equations, FEEDBACK bound of the module's
+    analysis: Phi chi sums the same terms as Newton–Euler, in another order) and the rigid rows are the
+    motor torques."""
+    robot = MDHRobot.from_table(_elastic_table(seed, tree))
+    e, r = elastic_joints(robot), rigid_joints(robot)
+    chi = robot.standard_parameters(stiffness=True)
+    assert len(chi) == 13 * robot.n_frames + len(e)
+    names = robot.parameter_names(stiffness=True)
+    assert names[13 * robot.n_frames:] == [f"K{row + 1}" for row in robot.joint_frames[e]]
+    np.testing.assert_array_equal(chi[13 * robot.n_frames:], robot.k[robot.joint_frames[e]])
+    for q, qd, qdd_r in zip(*_states(robot, seed, 4)):
+        result = hybrid_dynamics(robot, q, qd, qdd_r)
+        phi = robot.regressor(q, qd, result.qdd, stiffness=True)
+        np.testing.assert_array_equal(phi[:, :13 * robot.n_frames], robot.regressor(q, qd, result.qdd))
+        tau = phi @ chi
+        h = inverse_dynamics(robot, q, qd, np.zeros(robot.n_joints))
+        a = inertia_matrix(robot, q)
+        scale = max(1.0, np.max(np.abs(h)),
+                    np.max(np.abs(chi[13 * robot.n_frames:] * q[e]), initial=0),
+                    np.linalg.norm(a, 2) * np.max(np.abs(result.qdd)))
+        np.testing.assert_allclose(tau[e], 0.0, rtol=0, atol=FEEDBACK * scale)
+        np.testing.assert_allclose(tau[r], result.tau_rigid, rtol=0, atol=FEEDBACK * scale)
+
+
+def test_regressor_batch_with_stiffness():
+    from sicomat.robotics import regressor_batch
+
+    robot = MDHRobot.from_table(elastic_cross_slide_frames())
+    q, qd, qdd = (np.random.default_rng(3).uniform(-1, 1, (4, 5)) for _ in range(3))
+    phi = regressor_batch(robot, q, qd, qdd, stiffness=True)
+    assert phi.shape == (4, 5, 13 * 6 + 3)
+    # columns K2, K3, K5: q2, q3, q5 on their own rows, 0 elsewhere
+    expected = np.zeros((4, 5, 3))
+    for column, joint in enumerate((1, 2, 4)):
+        expected[:, joint, column] = q[:, joint]
+    np.testing.assert_array_equal(phi[:, :, 78:], expected)
+    np.testing.assert_array_equal(phi[:, :, :78], regressor_batch(robot, q, qd, qdd))
+
+
+def test_elastic_cross_slide_base_parameters_with_stiffness():
+    """Counted by hand. Without stiffness the notes give 24 (test_robotics_base). At rest (qd = qdd = 0)
+    every standard column of the elastic XY is zero: gravity (along -z0) does no work, the prismatic axes
+    being x0 and y0 and the yaw axis z0, and the IA, FV, FS columns are qdd, qd, sign(qd). The stiffness
+    columns are q2 e2, q3 e3, q5 e5, nonzero at rest on three different rows. A combination
+    sum c_i Phi_i + sum kappa_j q_j e_j that vanishes at every state vanishes at rest, so every kappa_j = 0:
+    the three K are independent of the 24 and of each other. 24 + 3 = 27, nothing regrouped into or out of
+    them, and the 24 keep their relations (the K come last in the order of preference)."""
+    robot = MDHRobot.from_table(elastic_cross_slide_frames())
+    plain = robot.base_parameters()
+    base = robot.base_parameters(stiffness=True)
+    assert plain.count == 24 and base.count == 27
+    assert base.names == plain.names + ("K2", "K3", "K5")
+    assert base.labels[-3:] == ("K2", "K3", "K5")          # no R: nothing regrouped into them
+    assert "K" not in "".join(base.dropped) and not any(name.startswith("K") for name in base.unidentifiable)
+    np.testing.assert_allclose(base.beta[:24, :], plain.beta, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(base.values[-3:], [2e8, 5e7, 1.5e8])
+    assert base.stiffness and base.n_standard == 81 and base.to_dict()["stiffness"] is True
+    # the rigid-body inertial set gains the same three: 11 + 3
+    assert robot.base_parameters(parameters="inertial", stiffness=True).count == \
+        robot.base_parameters(parameters="inertial").count + 3
+
+
+@pytest.mark.parametrize("seed,tree", CASES[:6])
+def test_base_model_with_stiffness_reproduces_the_extended_torques(seed, tree):
+    from sicomat.robotics import regressor_batch
+
+    robot = MDHRobot.from_table(_elastic_table(seed, tree))
+    base = robot.base_parameters(stiffness=True)
+    e = elastic_joints(robot)
+    # each K column is the only one linear in its own deflection on its own row (at rest a standard
+    # column's row e is a gravity term: trigonometric in a revolute q_e, free of a prismatic one)
+    assert base.count == robot.base_parameters().count + len(e)
+    q, qd, qdd = (np.random.default_rng(seed + 9).uniform(-2, 2, (20, robot.n_joints)) for _ in range(3))
+    phi = regressor_batch(robot, q, qd, qdd, stiffness=True)
+    extended = phi @ robot.standard_parameters(stiffness=True)
+    # base-parameter torques: rounding of a least-squares regrouping (~1e-13 of the scale), 1e-9 as in
+    # test_robotics_base
+    np.testing.assert_allclose(phi[:, :, base.indices] @ base.values, extended, rtol=0,
+                               atol=REL * np.max(np.abs(extended)))
+    with pytest.raises(ValueError, match="one stiffness per elastic joint"):
+        base.regroup(np.zeros(13 * robot.n_frames))

@@ -196,13 +196,20 @@ class MDHRobot:
         """The number of joint variables (frames that are not fixed)."""
         return len(self.joint_frames)
 
-    def standard_parameters(self) -> np.ndarray:
-        """The 13 standard parameters of every frame, frame by frame (``13 * NF``)."""
-        return self.chi.reshape(-1).copy()
+    def standard_parameters(self, stiffness: bool = False) -> np.ndarray:
+        """The 13 standard parameters of every frame, frame by frame (``13 * NF``); with ``stiffness=True``
+        followed by the stiffness ``k`` of each elastic joint (``eta = 1``) in joint order."""
+        chi = self.chi.reshape(-1).copy()
+        return np.concatenate([chi, self.k[self._elastic_rows()]]) if stiffness else chi
 
-    def parameter_names(self) -> list[str]:
-        """Names of :meth:`standard_parameters`: ``XX1 XY1 ... FS1 XX2 ...``."""
-        return [f"{name}{j + 1}" for j in range(self.n_frames) for name in PARAMETER_FIELDS]
+    def parameter_names(self, stiffness: bool = False) -> list[str]:
+        """Names of :meth:`standard_parameters`: ``XX1 XY1 ... FS1 XX2 ...`` (then ``K2 K3 ...``, the
+        stiffness of the elastic frames, with ``stiffness=True``)."""
+        names = [f"{name}{j + 1}" for j in range(self.n_frames) for name in PARAMETER_FIELDS]
+        return names + [f"K{row + 1}" for row in self._elastic_rows()] if stiffness else names
+
+    def _elastic_rows(self) -> np.ndarray:
+        return self.joint_frames[self.eta[self.joint_frames] == 1]
 
     # ------------------------------------------------------------------ models (free functions)
     def transforms(self, q: Any) -> np.ndarray:
@@ -241,14 +248,15 @@ class MDHRobot:
         from .dynamics import direct_dynamics
         return direct_dynamics(self, q, qd, tau)
 
-    def regressor(self, q: Any, qd: Any, qdd: Any) -> np.ndarray:
-        """``Phi`` (n x 13 NF) with ``inverse_dynamics = Phi @ standard_parameters()``."""
+    def regressor(self, q: Any, qd: Any, qdd: Any, stiffness: bool = False) -> np.ndarray:
+        """``Phi`` (n x 13 NF) with ``inverse_dynamics = Phi @ standard_parameters()`` (and the stiffness
+        columns with ``stiffness=True``); see :func:`sicomat.robotics.dynamics.regressor`."""
         from .dynamics import regressor
-        return regressor(self, q, qd, qdd)
+        return regressor(self, q, qd, qdd, stiffness=stiffness)
 
     def base_parameters(self, **options: Any) -> "BaseParameters":
         """The base inertial parameters (numerical method); see :func:`sicomat.robotics.base.base_parameters`
-        for the options (``parameters``, ``samples``, ``seed``, ``tol``)."""
+        for the options (``parameters``, ``stiffness``, ``samples``, ``seed``, ``tol``)."""
         from .base import base_parameters
         return base_parameters(self, **options)
 
