@@ -8,6 +8,8 @@ from .dynamics import inertia_matrix_batch
 from .elastic import (HybridDynamics, elastic_direct_dynamics, elastic_joints, elastic_torques, hybrid_dynamics,
                       rigid_joints)
 from .geometry import jacobian, transform, transforms
+from .loops import (active_joints, closed_loop_inertia_matrix, closed_loop_inverse_dynamics, closure_error,
+                    constraint_jacobian, loop_frames, loop_jacobian, loop_states, passive_joints, solve_closure)
 from .table import FRAME_FIELDS, PARAMETER_FIELDS, MDHRobot
 
 __all__ = [
@@ -32,4 +34,14 @@ __all__ = [
     "elastic_torques",
     "elastic_joints",
     "rigid_joints",
+    "loop_frames",
+    "active_joints",
+    "passive_joints",
+    "closure_error",
+    "loop_jacobian",
+    "solve_closure",
+    "constraint_jacobian",
+    "loop_states",
+    "closed_loop_inverse_dynamics",
+    "closed_loop_inertia_matrix",
 ]

@@ -105,6 +105,8 @@ class MDHRobot:
         inertia about the frame origin in the frame (Khalil's convention, ``XY = -∫xy dm``).
     gravity : ndarray, shape (3,)
         Gravity acceleration in the base frame (m/s^2).
+    links : int or None
+        NL when the robot has closed loops (:attr:`n_links`, :attr:`n_loops`), None for a tree.
     """
 
     ant: np.ndarray
@@ -120,6 +122,9 @@ class MDHRobot:
     k: np.ndarray
     chi: np.ndarray
     gravity: np.ndarray
+    links: int | None = None
+    """NL, the number of links (SYMORO's ``NL``); None for a tree (NL = NF). Frames NL+1..NL+B are the cut
+    joints of the B closed loops, frames NL+B+1..NF their closing frames (see :meth:`from_table`)."""
     joint_of_frame: np.ndarray = field(init=False, repr=False)
     """Index in ``q`` of each frame's joint variable, -1 for a fixed frame."""
     joint_frames: np.ndarray = field(init=False, repr=False)
@@ -135,7 +140,7 @@ class MDHRobot:
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_table(cls, frames: Sequence[Mapping[str, Any]],
-                   gravity: Sequence[float] = (0.0, 0.0, -9.81)) -> "MDHRobot":
+                   gravity: Sequence[float] = (0.0, 0.0, -9.81), links: int | None = None) -> "MDHRobot":
         """Build and validate a robot from one mapping per frame.
 
         Parameters
@@ -149,6 +154,12 @@ class MDHRobot:
             friction) default to 0.
         gravity : sequence of 3 floats
             Gravity in the base frame, m/s^2.
+        links : int, optional
+            NL, the number of links, for a robot with closed loops (SYMORO's description, notes §1.3):
+            frames 1..NL are a tree of links; the B = (NF - NL)/2 loops are each cut at one joint. Cut
+            frame k (NL < k <= NL + B) is that joint, on link ``ant(k)``, a passive joint (``mu = eta = 0``)
+            with no link of its own; its closing frame k + B (``sigma = 2``) sits on the other link,
+            ``ant(k + B)``, and the loop is closed when ``0T_k(q) = 0T_{k+B}(q)``. None (default): a tree.
 
         Raises
         ------
@@ -158,8 +169,9 @@ class MDHRobot:
             not in 0/1/2, ``mu``/``eta`` not 0/1, an elastic or fixed frame marked motorised, a fixed
             frame marked elastic or given ``IA``, ``FV``, ``FS`` or ``k``, a non-finite number, a negative
             ``M``, ``k``, ``IA``, ``FV`` or ``FS``, or an inertia no real body has (not positive semi-definite about the centre of
-            mass). Closed loops (cut frames) are not supported yet: every fixed frame is rigidly
-            attached to its antecedent.
+            mass); with ``links``: an odd number of frames after NL, a loop whose cut frame is not a
+            passive joint, a closing frame that is not fixed, a cut or closing frame with a link
+            (inertial parameters) or hanging from a frame after NL, a closing frame on the cut frame's link.
 
         Examples
         --------
@@ -183,13 +195,26 @@ class MDHRobot:
                        dtype=float)
         ints = {name: np.array(columns[name], dtype=int) for name in ("ant", "sigma", "mu", "eta")}
         floats = {name: np.array(columns[name], dtype=float) for name in (*GEOMETRY_FIELDS, "k")}
-        return cls(chi=chi, gravity=g, **ints, **floats)
+        nl = _links(links, len(frames))
+        if nl is not None:
+            _check_loops(columns, nl)
+        return cls(chi=chi, gravity=g, links=nl, **ints, **floats)
 
     # ------------------------------------------------------------------ sizes and names
     @property
     def n_frames(self) -> int:
         """NF, the number of frames (base excluded)."""
         return len(self.sigma)
+
+    @property
+    def n_links(self) -> int:
+        """NL, the number of links (NF for a tree)."""
+        return self.n_frames if self.links is None else self.links
+
+    @property
+    def n_loops(self) -> int:
+        """B, the number of closed loops: ``(NF - NL) / 2``."""
+        return (self.n_frames - self.n_links) // 2
 
     @property
     def n_joints(self) -> int:
@@ -269,6 +294,52 @@ def _gravity(gravity: object) -> np.ndarray:
     if g.shape != (3,) or not np.all(np.isfinite(g)):
         raise ModelError("gravity must be 3 finite numbers (m/s^2, base frame)", path="gravity", value=gravity)
     return g
+
+
+def _links(links: object, nf: int) -> int | None:
+    if links is None:
+        return None
+    if isinstance(links, bool) or not isinstance(links, Integral) or not 1 <= int(links) <= nf:
+        raise ModelError(f"links (NL) must be an integer 1..{nf} (the number of frames)", path="links", value=links)
+    return int(links)
+
+
+def _link_of(columns: Mapping[str, list[float]], frame: int) -> int:
+    """The frame whose link carries ``frame``: up the fixed frames (``sigma = 2``) to a joint or the base."""
+    while frame > 0 and columns["sigma"][frame - 1] == FIXED:
+        frame = int(columns["ant"][frame - 1])
+    return frame
+
+
+def _check_loops(columns: Mapping[str, list[float]], nl: int) -> None:
+    """SYMORO's closed loops (notes §1.3): frames NL+1..NL+B cut joints, NL+B+1..NF their closing frames."""
+    nf = len(columns["ant"])
+    if (nf - nl) % 2:
+        raise _error(nf - 1, "ant", f"with links = {nl}, the {nf - nl} frames after the links must be cut frames "
+                     "and their closing frames in pairs (NF - NL = 2B), not an odd number")
+    loops = (nf - nl) // 2
+    for row in range(nl, nf):
+        for name in PARAMETER_FIELDS[:10]:
+            if columns[name][row] != 0.0:
+                raise _error(row, name, f"a cut or closing frame (after frame {nl} = NL) carries no link: "
+                             f"{name} must be 0", columns[name][row])
+        if columns["ant"][row] > nl:
+            raise _error(row, "ant", f"a cut or closing frame hangs from a link (a frame 0..{nl} = NL)",
+                         int(columns["ant"][row]))
+    for cut in range(nl, nl + loops):
+        closing = cut + loops
+        loop = f"loop {cut - nl + 1} (cut frame {cut + 1}, closing frame {closing + 1})"
+        if columns["sigma"][cut] == FIXED:
+            raise _error(cut, "sigma", f"{loop} has no cut joint: frame {cut + 1} must be a joint (sigma 0 or 1)", 2)
+        for key in ("mu", "eta"):
+            if columns[key][cut] != 0:
+                raise _error(cut, key, f"{loop}: a cut joint is passive, {key} must be 0", 1)
+        if columns["sigma"][closing] != FIXED:
+            raise _error(closing, "sigma", f"{loop}: a closing frame is fixed on its link (sigma = 2)",
+                         int(columns["sigma"][closing]))
+        if _link_of(columns, int(columns["ant"][cut])) == _link_of(columns, int(columns["ant"][closing])):
+            raise _error(closing, "ant", f"{loop}: the closing frame sits on the same link as the cut joint "
+                         f"(frame {int(columns['ant'][cut])}): the loop closes nothing", int(columns["ant"][closing]))
 
 
 def _row(row: int, frame: object) -> dict[str, float]:
