@@ -107,7 +107,7 @@ def test_parallelogram_against_its_closed_form():
         np.testing.assert_allclose(closed_loop_inertia_matrix(robot, q), [[inertia]], rtol=0, atol=1e-11)
 
 
-# --------------------------------------------------------------------------- four-bar, sympy Lagrange
+# --------------------------------------------------------------------------- four-bar, Lagrange from plane geometry
 L0, L1, L2, L3 = 1.0, 0.35, 0.9, 0.6         # Grashof crank-rocker: 0.35 + 1.0 < 0.9 + 0.6, the crank turns fully
 FOUR_BAR_LINKS = {1: _planar_link(0.8, 0.12, 0.03, 0.01, IA=0.05, FV=0.2),
                   2: _planar_link(2.0, 0.9, 0.1, 0.08, FV=0.1),
@@ -184,7 +184,7 @@ def _closed(robot: MDHRobot, angles, q1: float) -> np.ndarray:
     return q
 
 
-def test_four_bar_against_sympy_lagrange(four_bar):
+def test_four_bar_against_lagrange(four_bar):
     robot, (torque, mass, angles) = four_bar
     rng = np.random.default_rng(1)
     for q1 in rng.uniform(-math.pi, math.pi, 8):
