@@ -288,3 +288,37 @@ def test_a_tree_has_no_loops():
     robot = MDHRobot.from_table(_loop_table()[:3])
     assert robot.links is None and robot.n_links == 3 and robot.n_loops == 0 and loop_frames(robot) == []
     assert MDHRobot.from_table(_loop_table()[:3], links=3).n_loops == 0
+
+
+def test_a_tilted_four_bar_is_the_flat_one_under_rotated_gravity():
+    """The four-bar mounted on a fixed frame tilted in space (gamma, b, alpha, d, theta all nonzero): the
+    closure's rotation rows now mix all three axes. Its motion in its plane is the flat four-bar's under
+    the gravity seen from the plane's frame, R1^T g (written by hand from the constant rotation
+    Rz(gamma) Rx(alpha) Rz(theta)); the two tables go through the same code, so this checks the spatial
+    closure and its Jacobian, not the dynamics (checked above). The two Newton solves close to 1e-14 of the
+    size (~3 m), so their joints agree to ~1e-13 rad (levers >= 0.3 m); G, qdd and the torques vary by
+    O(1..10) per rad: bounds 1e-11 (q, G), 1e-10 (qdd, up to ~50 rad/s^2) and 1e-11 of the torque scale."""
+    gamma, alpha, theta = 0.3, 0.7, 0.4
+    cg, sg, ca, sa, ct, st = (f(x) for x in (gamma, alpha, theta) for f in (math.cos, math.sin))
+    rot = (np.array([[cg, -sg, 0], [sg, cg, 0], [0, 0, 1]]) @ np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+           @ np.array([[ct, -st, 0], [st, ct, 0], [0, 0, 1]]))
+    gravity = np.array([0.0, 0.0, -G0])
+    flat_frames = _four_bar_frames(L0, L1, L2, L3, FOUR_BAR_LINKS)
+    tilted_frames = [dict(ant=0, sigma=2, gamma=gamma, b=0.1, alpha=alpha, d=0.2, theta=theta)] + \
+        [dict(row, ant=row["ant"] + 1) for row in flat_frames]
+    flat = MDHRobot.from_table(flat_frames, gravity=rot.T @ gravity, links=3)
+    tilted = MDHRobot.from_table(tilted_frames, gravity=gravity, links=4)
+    rng = np.random.default_rng(3)
+    for q1 in rng.uniform(-math.pi, math.pi, 4):
+        phi2, phi3 = _angles(q1)
+        guess = np.array([q1, phi2 - q1, phi3, phi2 - phi3]) + [0.0, 0.05, -0.05, 0.05]
+        q = solve_closure(tilted, [q1], guess, tol=1e-14)
+        np.testing.assert_allclose(q, solve_closure(flat, [q1], guess, tol=1e-14), rtol=0, atol=1e-11)
+        assert np.max(np.abs(closure_error(tilted, q))) <= 1e-14 * 3
+        np.testing.assert_allclose(constraint_jacobian(tilted, q), constraint_jacobian(flat, q), rtol=0, atol=1e-11)
+        qd, qdd = loop_states(tilted, q, rng.uniform(-3, 3, 1), rng.uniform(-5, 5, 1))
+        flat_qd, flat_qdd = loop_states(flat, q, qd[:1], qdd[:1])
+        np.testing.assert_allclose(qdd, flat_qdd, rtol=0, atol=1e-10)
+        torque = closed_loop_inverse_dynamics(tilted, q, qd, qdd)
+        np.testing.assert_allclose(torque, closed_loop_inverse_dynamics(flat, q, flat_qd, flat_qdd), rtol=0,
+                                   atol=1e-11 * max(1.0, float(np.max(np.abs(torque)))))
