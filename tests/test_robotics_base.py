@@ -28,6 +28,8 @@ import pytest
 from sicomat.robotics import BaseParameters, MDHRobot, base_parameters, inverse_dynamics_batch, regressor_batch
 from sicomat.robotics.table import PARAMETER_FIELDS
 
+from robotics_models import elastic_cross_slide_frames
+
 PI = math.pi
 COEF = 1e-9
 REL = 1e-9
@@ -89,16 +91,8 @@ def cross_slide() -> MDHRobot:
 
 
 def elastic_cross_slide() -> MDHRobot:
-    """The elastic XY cross-slide of the notes §4: X motor (massless link), X screw deflection, carriage yaw,
-    Y motor, Y screw deflection carrying the head, a fixed tool-tip frame h = 0.2 m below."""
-    rows = [dict(ant=0, sigma=1, mu=1, gamma=PI / 2, alpha=PI / 2, IA=30.0),
-            dict(ant=1, sigma=1, eta=1, k=2e8),
-            dict(ant=2, sigma=0, eta=1, k=5e7, alpha=-PI / 2, theta=-PI / 2,
-                 M=120.0, MX=6.0, MY=-9.0, XX=30.0, YY=30.0, ZZ=40.0),
-            dict(ant=3, sigma=1, mu=1, alpha=-PI / 2, IA=20.0),
-            dict(ant=4, sigma=1, eta=1, k=1.5e8, M=60.0, MX=3.0, XX=8.0, YY=9.0, ZZ=7.0),
-            dict(ant=5, sigma=2, alpha=-PI / 2, r=0.2)]
-    return MDHRobot.from_table(rows, gravity=(0.0, 0.0, -9.81))
+    """The elastic XY cross-slide of the notes §4 (the table in ``tests/robotics_models.py``)."""
+    return MDHRobot.from_table(elastic_cross_slide_frames(), gravity=(0.0, 0.0, -9.81))
 
 
 def _states(robot: MDHRobot, seed: int, count: int = 25):

@@ -23,6 +23,8 @@ import pytest
 from sicomat.errors import ModelError
 from sicomat.robotics import MDHRobot
 
+from robotics_models import pinocchio_model
+
 REL = 1e-9
 
 
@@ -84,44 +86,8 @@ def test_the_random_cases_cover_what_they_claim():
 
 
 # --------------------------------------------------------------------------- Pinocchio from the table
-def _rz(t: float) -> np.ndarray:
-    return np.array([[math.cos(t), -math.sin(t), 0], [math.sin(t), math.cos(t), 0], [0, 0, 1.0]])
-
-
-def _rx(t: float) -> np.ndarray:
-    return np.array([[1.0, 0, 0], [0, math.cos(t), -math.sin(t)], [0, math.sin(t), math.cos(t)]])
-
-
-def _constant_placement(row: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Rot(z,gamma) Trans(z,b) Rot(x,alpha) Trans(x,d) Rot(z,theta) Trans(z,r) with the constant
-    theta, r (the joint variable follows as Pinocchio's RZ or PZ joint: Rz and Tz commute)."""
-    g, a, t = row.get("gamma", 0.0), row.get("alpha", 0.0), row.get("theta", 0.0)
-    rot = _rz(g) @ _rx(a) @ _rz(t)
-    pos = np.array([0, 0, row.get("b", 0.0)]) + _rz(g) @ _rx(a) @ np.array([row.get("d", 0.0), 0, 0]) \
-        + rot[:, 2] * row.get("r", 0.0)
-    return rot, pos
-
-
-def _pinocchio(frames: list[dict], gravity=(0.0, 0.0, -9.81)):
-    model = pin.Model()
-    model.gravity.linear = np.array(gravity, dtype=float)
-    joint = {0: 0}                       # frame number -> Pinocchio joint carrying it
-    in_joint = {0: pin.SE3.Identity()}   # frame number -> its placement in that joint's frame
-    for j, row in enumerate(frames, start=1):
-        local = pin.SE3(*_constant_placement(row))
-        a = row["ant"]
-        placement = in_joint[a] * local
-        if row["sigma"] == 2:
-            joint[j], in_joint[j] = joint[a], placement
-        else:
-            kind = pin.JointModelRZ() if row["sigma"] == 0 else pin.JointModelPZ()
-            joint[j] = model.addJoint(joint[a], kind, placement, f"joint{j}")
-            in_joint[j] = pin.SE3.Identity()
-        g = lambda key: row.get(key, 0.0)  # noqa: E731
-        # Pinocchio's dynamic parameters, about the body frame's origin like Khalil's
-        params = np.array([g("M"), g("MX"), g("MY"), g("MZ"), g("XX"), g("XY"), g("YY"), g("XZ"), g("YZ"), g("ZZ")])
-        model.appendBodyToJoint(joint[j], pin.Inertia.FromDynamicParameters(params), in_joint[j])
-    return model, model.createData()
+# the builder lives in tests/robotics_models.py (shared with the elastic and closed-loop tests)
+_pinocchio = pinocchio_model
 
 
 def _depth_first(model) -> bool:

@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import ModelError
 
 __all__ = ["FRAME_FIELDS", "PARAMETER_FIELDS", "GEOMETRY_FIELDS", "REVOLUTE", "PRISMATIC", "FIXED",
-           "FIELD_UNITS", "field_unit", "check_frame", "check_gravity"]
+           "FIELD_UNITS", "field_unit", "check_frame", "check_gravity", "check_links", "check_loops"]
 
 GEOMETRY_FIELDS = ("gamma", "b", "alpha", "d", "theta", "r")
 PARAMETER_FIELDS = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M", "IA", "FV", "FS")
@@ -155,3 +155,49 @@ def check_frame(row: int, frame: object) -> dict[str, float]:
                 raise _error(row, key, f"a fixed frame (sigma = 2) has no joint: {key} must be 0", values[key])
     _check_inertia(row, np.array([values[name] for name in PARAMETER_FIELDS]))
     return values
+
+
+def check_links(links: object, nf: int) -> int | None:
+    if links is None:
+        return None
+    if isinstance(links, bool) or not isinstance(links, Integral) or not 1 <= int(links) <= nf:
+        raise ModelError(f"links (NL) must be an integer 1..{nf} (the number of frames)", path="links", value=links)
+    return int(links)
+
+
+def _link_of(columns: Mapping[str, list[float]], frame: int) -> int:
+    """The frame whose link carries ``frame``: up the fixed frames (``sigma = 2``) to a joint or the base."""
+    while frame > 0 and columns["sigma"][frame - 1] == FIXED:
+        frame = int(columns["ant"][frame - 1])
+    return frame
+
+
+def check_loops(columns: Mapping[str, list[float]], nl: int) -> None:
+    """SYMORO's closed loops (notes §1.3): frames NL+1..NL+B cut joints, NL+B+1..NF their closing frames."""
+    nf = len(columns["ant"])
+    if (nf - nl) % 2:
+        raise _error(nf - 1, "ant", f"with links = {nl}, the {nf - nl} frames after the links must be cut frames "
+                     "and their closing frames in pairs (NF - NL = 2B), not an odd number")
+    loops = (nf - nl) // 2
+    for row in range(nl, nf):
+        for name in PARAMETER_FIELDS[:10]:
+            if columns[name][row] != 0.0:
+                raise _error(row, name, f"a cut or closing frame (after frame {nl} = NL) carries no link: "
+                             f"{name} must be 0", columns[name][row])
+        if columns["ant"][row] > nl:
+            raise _error(row, "ant", f"a cut or closing frame hangs from a link (a frame 0..{nl} = NL)",
+                         int(columns["ant"][row]))
+    for cut in range(nl, nl + loops):
+        closing = cut + loops
+        loop = f"loop {cut - nl + 1} (cut frame {cut + 1}, closing frame {closing + 1})"
+        if columns["sigma"][cut] == FIXED:
+            raise _error(cut, "sigma", f"{loop} has no cut joint: frame {cut + 1} must be a joint (sigma 0 or 1)", 2)
+        for key in ("mu", "eta"):
+            if columns[key][cut] != 0:
+                raise _error(cut, key, f"{loop}: a cut joint is passive, {key} must be 0", 1)
+        if columns["sigma"][closing] != FIXED:
+            raise _error(closing, "sigma", f"{loop}: a closing frame is fixed on its link (sigma = 2)",
+                         int(columns["sigma"][closing]))
+        if _link_of(columns, int(columns["ant"][cut])) == _link_of(columns, int(columns["ant"][closing])):
+            raise _error(closing, "ant", f"{loop}: the closing frame sits on the same link as the cut joint "
+                         f"(frame {int(columns['ant'][cut])}): the loop closes nothing", int(columns["ant"][closing]))

@@ -74,7 +74,10 @@ class BaseParameters:
     parameters : {"all", "inertial"}
         Which standard parameters were considered: all 13 per link, or only ``XX..M`` (10 per link).
     n_standard : int
-        The length of the robot's standard-parameter vector, ``13 NF``.
+        The length of the robot's standard-parameter vector, ``13 NF`` (``+ n_e`` with ``stiffness``).
+    stiffness : bool
+        Whether the stiffness ``k`` of the elastic joints (``K2``...) was considered, after every link's
+        parameters (:meth:`MDHRobot.standard_parameters` with ``stiffness=True``).
     """
 
     names: tuple[str, ...]
@@ -87,6 +90,7 @@ class BaseParameters:
     values: np.ndarray
     parameters: str
     n_standard: int
+    stiffness: bool = False
 
     @property
     def count(self) -> int:
@@ -112,10 +116,11 @@ class BaseParameters:
 
     def regroup(self, standard: Any) -> np.ndarray:
         """The base parameters (count,) of other standard parameters of the same robot, a vector laid
-        out as :meth:`MDHRobot.standard_parameters` (``13 NF``)."""
+        out as :meth:`MDHRobot.standard_parameters` (``13 NF``, then the stiffnesses if ``stiffness``)."""
         chi = np.asarray(standard, dtype=float)
         if chi.shape != (self.n_standard,):
-            raise ValueError(f"expected the {self.n_standard} standard parameters (13 per frame), "
+            layout = "13 per frame, then one stiffness per elastic joint" if self.stiffness else "13 per frame"
+            raise ValueError(f"expected the {self.n_standard} standard parameters ({layout}), "
                              f"got shape {chi.shape}")
         return chi[self.indices] + self.beta @ chi[self.dropped_indices]
 
@@ -125,7 +130,7 @@ class BaseParameters:
         return {"count": self.count, "names": list(self.names), "labels": list(self.labels),
                 "relations": list(self.relations), "values": [float(v) for v in self.values],
                 "dropped": list(self.dropped), "unidentifiable": list(self.unidentifiable),
-                "parameters": self.parameters}
+                "parameters": self.parameters, "stiffness": self.stiffness}
 
 
 def _random_states(robot: "MDHRobot", samples: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -165,7 +170,7 @@ def _pivoted_rank(columns: np.ndarray, tol: float) -> int:
     return int(np.sum(diag > tol * diag[0]))
 
 
-def base_parameters(robot: "MDHRobot", *, parameters: Literal["all", "inertial"] = "all",
+def base_parameters(robot: "MDHRobot", *, parameters: Literal["all", "inertial"] = "all", stiffness: bool = False,
                     samples: int = DEFAULT_SAMPLES, seed: int = 0, tol: float = DEFAULT_TOL) -> BaseParameters:
     """The base parameters of a robot by the numerical method (QR of a random-sample regressor).
 
@@ -177,6 +182,10 @@ def base_parameters(robot: "MDHRobot", *, parameters: Literal["all", "inertial"]
         ``"all"``: the 13 standard parameters per link (``IA``, ``FV``, ``FS`` included; the base model then
         gives the robot's :func:`~sicomat.robotics.dynamics.inverse_dynamics`); ``"inertial"``: only
         ``XX..M``, the torques less ``IA qdd + FV qd + FS sign(qd)``.
+    stiffness : bool
+        Also the stiffness ``k`` of each elastic joint (the regressor's column ``q_e e_e``), after every
+        link's parameters in the order of preference: the base model then gives ``inverse_dynamics + k q``
+        on the elastic rows (:func:`~sicomat.robotics.dynamics.regressor` with ``stiffness=True``).
     samples : int
         Random states stacked (``samples * n`` rows, at least as many as the parameters considered).
     seed : int
@@ -222,11 +231,13 @@ def base_parameters(robot: "MDHRobot", *, parameters: Literal["all", "inertial"]
         raise ValueError("the robot has no joint (every frame is fixed): no torque, no base parameters")
     stride = robot.chi.shape[1]      # the 13 standard parameters of a link
     per_link = stride if parameters == "all" else _INERTIAL
-    considered = np.array([stride * row + c for row in range(robot.n_frames) for c in range(per_link)])
+    n_elastic = int(np.sum(robot.eta[robot.joint_frames] == 1)) if stiffness else 0
+    considered = np.array([stride * row + c for row in range(robot.n_frames) for c in range(per_link)] +
+                          [stride * robot.n_frames + i for i in range(n_elastic)])
     if samples * n < len(considered):
         raise ValueError(f"samples * n_joints = {samples * n} rows cannot show the rank of {len(considered)} "
                          f"parameters: use samples >= {-(-len(considered) // n)}")
-    phi = regressor_batch(robot, *_random_states(robot, int(samples), seed))
+    phi = regressor_batch(robot, *_random_states(robot, int(samples), seed), stiffness=bool(stiffness))
     w = phi.reshape(-1, phi.shape[-1])[:, considered]
     norms = np.linalg.norm(w, axis=0)
     nonzero = np.flatnonzero(norms > tol * norms.max()) if norms.max() > 0.0 else np.zeros(0, dtype=int)
@@ -248,12 +259,12 @@ def base_parameters(robot: "MDHRobot", *, parameters: Literal["all", "inertial"]
     indices = considered[nonzero[kept_local]]
     dropped_indices = considered[nonzero[dep_local]]
     zero = np.setdiff1d(considered, considered[nonzero])
-    names_all = robot.parameter_names()
+    names_all = robot.parameter_names(stiffness=bool(stiffness))
     names = tuple(names_all[i] for i in indices)
     labels = tuple(f"{name}R" if np.any(row != 0.0) else name for name, row in zip(names, beta))
-    chi = robot.standard_parameters()
+    chi = robot.standard_parameters(stiffness=bool(stiffness))
     return BaseParameters(names=names, labels=labels, indices=indices,
                           dropped=tuple(names_all[i] for i in dropped_indices), dropped_indices=dropped_indices,
                           unidentifiable=tuple(names_all[i] for i in zero), beta=beta,
                           values=chi[indices] + beta @ chi[dropped_indices], parameters=parameters,
-                          n_standard=len(chi))
+                          n_standard=len(chi), stiffness=bool(stiffness))

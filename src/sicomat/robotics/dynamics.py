@@ -5,8 +5,9 @@ regressor linear in the standard parameters.
 Every quantity of link j is in frame j, moments about the origin O_j (Khalil's convention); gravity
 enters as the base acceleration ``vd_0 = -g``. The torque of joint j is
 ``(sigma_j f_j + (1 - sigma_j) n_j) . z_j + IA_j qdd_j + FV_j qd_j + FS_j sign(qd_j)``. Elastic joints
-are joints like the others here (their stiffness torque is an input of the hybrid model, not built
-yet); fixed frames carry their link but have no torque.
+are joints like the others here (their stiffness torque ``-k q`` is applied by the hybrid model,
+:mod:`sicomat.robotics.elastic`, and is the extra column of the regressor with ``stiffness=True``);
+fixed frames carry their link but have no torque.
 """
 
 from __future__ import annotations
@@ -217,8 +218,9 @@ def _skew_batch(v: np.ndarray) -> np.ndarray:
     return out
 
 
-def regressor_batch(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> np.ndarray:
-    """:func:`regressor` over many states, shape (n_states, n, 13 NF)."""
+def regressor_batch(robot: "MDHRobot", q: Any, qd: Any, qdd: Any, *, stiffness: bool = False) -> np.ndarray:
+    """:func:`regressor` over many states, shape (n_states, n, 13 NF), or (n_states, n, 13 NF + n_e) with
+    ``stiffness=True``."""
     q_, qd_, qdd_ = _states(robot, q, qd, qdd)
     rot, pos, w, wd, vd = _forward(robot, q_, qd_, qdd_, robot.gravity)
     s, nf, n = q_.shape[0], robot.n_frames, robot.n_joints
@@ -247,16 +249,32 @@ def regressor_batch(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> np.ndarray:
             out[:, joint, col + 10] = qdd_[:, joint]
             out[:, joint, col + 11] = qd_[:, joint]
             out[:, joint, col + 12] = np.sign(qd_[:, joint])
+    if stiffness:
+        out = np.concatenate([out, _stiffness_columns(robot, q_)], axis=2)
     return out
 
 
-def regressor(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> np.ndarray:
+def _stiffness_columns(robot: "MDHRobot", q: np.ndarray) -> np.ndarray:
+    """The column ``q_j e_j`` of each elastic joint's stiffness ``k_j`` (notes §2.6), (n_states, n, n_e)."""
+    elastic = np.flatnonzero(robot.eta[robot.joint_frames] == 1)
+    out = np.zeros((q.shape[0], robot.n_joints, len(elastic)))
+    out[:, elastic, np.arange(len(elastic))] = q[:, elastic]
+    return out
+
+
+def regressor(robot: "MDHRobot", q: Any, qd: Any, qdd: Any, *, stiffness: bool = False) -> np.ndarray:
     """The regressor ``Phi`` (n x 13 NF) with ``inverse_dynamics(q, qd, qdd) = Phi @ standard_parameters()``.
 
     Column ``13 (j - 1) + c`` is the torque per unit of the c-th parameter ``XX XY XZ YY YZ ZZ MX MY
     MZ M IA FV FS`` of frame j's link.
+
+    With ``stiffness=True`` the stiffness ``k`` of each elastic joint (``eta = 1``, joint order) adds a
+    last column ``q_e e_e`` (n x (13 NF + n_e)): ``Phi @ standard_parameters(stiffness=True)`` is
+    ``inverse_dynamics + k q`` on the elastic rows, the left side of the elastic joint's equation
+    ``A qdd + h + k q = 0`` (0 at the accelerations of :func:`~sicomat.robotics.elastic.hybrid_dynamics`),
+    and the rigid joints' torques on the others (names ``K<frame>``, :meth:`MDHRobot.parameter_names`).
     """
-    phi = regressor_batch(robot, q, qd, qdd)
+    phi = regressor_batch(robot, q, qd, qdd, stiffness=stiffness)
     if phi.shape[0] != 1:
         raise ModelError("regressor takes one state; use regressor_batch", path="q")
     return phi[0]

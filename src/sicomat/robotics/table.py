@@ -10,7 +10,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..description.robot_table import (FIXED, FRAME_FIELDS, GEOMETRY_FIELDS, PARAMETER_FIELDS,
-                                       check_frame, check_gravity)
+                                       check_frame, check_gravity, check_links, check_loops)
 from ..errors import ModelError
 
 if typing.TYPE_CHECKING:
@@ -39,6 +39,8 @@ class MDHRobot:
         inertia about the frame origin in the frame (Khalil's convention, ``XY = -∫xy dm``).
     gravity : ndarray, shape (3,)
         Gravity acceleration in the base frame (m/s^2).
+    links : int or None
+        NL when the robot has closed loops (:attr:`n_links`, :attr:`n_loops`), None for a tree.
     """
 
     ant: np.ndarray
@@ -54,6 +56,9 @@ class MDHRobot:
     k: np.ndarray
     chi: np.ndarray
     gravity: np.ndarray
+    links: int | None = None
+    """NL, the number of links (SYMORO's ``NL``); None for a tree (NL = NF). Frames NL+1..NL+B are the cut
+    joints of the B closed loops, frames NL+B+1..NF their closing frames (see :meth:`from_table`)."""
     joint_of_frame: np.ndarray = field(init=False, repr=False)
     """Index in ``q`` of each frame's joint variable, -1 for a fixed frame."""
     joint_frames: np.ndarray = field(init=False, repr=False)
@@ -69,7 +74,7 @@ class MDHRobot:
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_table(cls, frames: Sequence[Mapping[str, Any]],
-                   gravity: Sequence[float] = (0.0, 0.0, -9.81)) -> "MDHRobot":
+                   gravity: Sequence[float] = (0.0, 0.0, -9.81), links: int | None = None) -> "MDHRobot":
         """Build and validate a robot from one mapping per frame.
 
         Parameters
@@ -83,6 +88,12 @@ class MDHRobot:
             friction) default to 0.
         gravity : sequence of 3 floats
             Gravity in the base frame, m/s^2.
+        links : int, optional
+            NL, the number of links, for a robot with closed loops (SYMORO's description, notes §1.3):
+            frames 1..NL are a tree of links; the B = (NF - NL)/2 loops are each cut at one joint. Cut
+            frame k (NL < k <= NL + B) is that joint, on link ``ant(k)``, a passive joint (``mu = eta = 0``)
+            with no link of its own; its closing frame k + B (``sigma = 2``) sits on the other link,
+            ``ant(k + B)``, and the loop is closed when ``0T_k(q) = 0T_{k+B}(q)``. None (default): a tree.
 
         Raises
         ------
@@ -92,8 +103,9 @@ class MDHRobot:
             not in 0/1/2, ``mu``/``eta`` not 0/1, an elastic or fixed frame marked motorised, a fixed
             frame marked elastic or given ``IA``, ``FV``, ``FS`` or ``k``, a non-finite number, a negative
             ``M``, ``k``, ``IA``, ``FV`` or ``FS``, or an inertia no real body has (not positive semi-definite about the centre of
-            mass). Closed loops (cut frames) are not supported yet: every fixed frame is rigidly
-            attached to its antecedent.
+            mass); with ``links``: an odd number of frames after NL, a loop whose cut frame is not a
+            passive joint, a closing frame that is not fixed, a cut or closing frame with a link
+            (inertial parameters) or hanging from a frame after NL, a closing frame on the cut frame's link.
 
         Examples
         --------
@@ -117,7 +129,10 @@ class MDHRobot:
                        dtype=float)
         ints = {name: np.array(columns[name], dtype=int) for name in ("ant", "sigma", "mu", "eta")}
         floats = {name: np.array(columns[name], dtype=float) for name in (*GEOMETRY_FIELDS, "k")}
-        return cls(chi=chi, gravity=g, **ints, **floats)
+        nl = check_links(links, len(frames))
+        if nl is not None:
+            check_loops(columns, nl)
+        return cls(chi=chi, gravity=g, links=nl, **ints, **floats)
 
     # ------------------------------------------------------------------ sizes and names
     @property
@@ -126,17 +141,34 @@ class MDHRobot:
         return len(self.sigma)
 
     @property
+    def n_links(self) -> int:
+        """NL, the number of links (NF for a tree)."""
+        return self.n_frames if self.links is None else self.links
+
+    @property
+    def n_loops(self) -> int:
+        """B, the number of closed loops: ``(NF - NL) / 2``."""
+        return (self.n_frames - self.n_links) // 2
+
+    @property
     def n_joints(self) -> int:
         """The number of joint variables (frames that are not fixed)."""
         return len(self.joint_frames)
 
-    def standard_parameters(self) -> np.ndarray:
-        """The 13 standard parameters of every frame, frame by frame (``13 * NF``)."""
-        return self.chi.reshape(-1).copy()
+    def standard_parameters(self, stiffness: bool = False) -> np.ndarray:
+        """The 13 standard parameters of every frame, frame by frame (``13 * NF``); with ``stiffness=True``
+        followed by the stiffness ``k`` of each elastic joint (``eta = 1``) in joint order."""
+        chi = self.chi.reshape(-1).copy()
+        return np.concatenate([chi, self.k[self._elastic_rows()]]) if stiffness else chi
 
-    def parameter_names(self) -> list[str]:
-        """Names of :meth:`standard_parameters`: ``XX1 XY1 ... FS1 XX2 ...``."""
-        return [f"{name}{j + 1}" for j in range(self.n_frames) for name in PARAMETER_FIELDS]
+    def parameter_names(self, stiffness: bool = False) -> list[str]:
+        """Names of :meth:`standard_parameters`: ``XX1 XY1 ... FS1 XX2 ...`` (then ``K2 K3 ...``, the
+        stiffness of the elastic frames, with ``stiffness=True``)."""
+        names = [f"{name}{j + 1}" for j in range(self.n_frames) for name in PARAMETER_FIELDS]
+        return names + [f"K{row + 1}" for row in self._elastic_rows()] if stiffness else names
+
+    def _elastic_rows(self) -> np.ndarray:
+        return self.joint_frames[self.eta[self.joint_frames] == 1]
 
     # ------------------------------------------------------------------ models (free functions)
     def transforms(self, q: Any) -> np.ndarray:
@@ -175,15 +207,14 @@ class MDHRobot:
         from .dynamics import direct_dynamics
         return direct_dynamics(self, q, qd, tau)
 
-    def regressor(self, q: Any, qd: Any, qdd: Any) -> np.ndarray:
-        """``Phi`` (n x 13 NF) with ``inverse_dynamics = Phi @ standard_parameters()``."""
+    def regressor(self, q: Any, qd: Any, qdd: Any, stiffness: bool = False) -> np.ndarray:
+        """``Phi`` (n x 13 NF) with ``inverse_dynamics = Phi @ standard_parameters()`` (and the stiffness
+        columns with ``stiffness=True``); see :func:`sicomat.robotics.dynamics.regressor`."""
         from .dynamics import regressor
-        return regressor(self, q, qd, qdd)
+        return regressor(self, q, qd, qdd, stiffness=stiffness)
 
     def base_parameters(self, **options: Any) -> "BaseParameters":
         """The base inertial parameters (numerical method); see :func:`sicomat.robotics.base.base_parameters`
-        for the options (``parameters``, ``samples``, ``seed``, ``tol``)."""
+        for the options (``parameters``, ``stiffness``, ``samples``, ``seed``, ``tol``)."""
         from .base import base_parameters
         return base_parameters(self, **options)
-
-
