@@ -20,7 +20,8 @@ from pydantic import Field, model_validator
 
 from ..errors import ModelError
 from .base import Name, Spec, fail
-from .robot_table import (FIELD_UNITS, FIXED, FRAME_FIELDS, PRISMATIC, check_frame, check_gravity, field_unit)
+from .robot_table import (FIELD_UNITS, FIXED, FRAME_FIELDS, PRISMATIC, check_frame, check_gravity, check_links,
+                          check_loops, field_unit)
 from .units import UNITS, parse_quantity
 
 __all__ = ["RobotSpec", "RobotSensor", "Frame"]
@@ -91,6 +92,9 @@ class RobotSpec(Spec):
     frames: list[Frame] = Field(min_length=1)
     sensors: dict[Name, RobotSensor] = Field(default_factory=dict)
     configuration: list[float] | None = None
+    links: int | None = None
+    """NL (SYMORO's name) for a machine with closed loops: frames after NL are the cut joints and their
+    closing frames (``docs/robotics.md``, "Closed loops"); none for a tree."""
 
     @model_validator(mode="before")
     @classmethod
@@ -129,6 +133,14 @@ class RobotSpec(Spec):
             except ModelError as exc:
                 field = (exc.path or "").split("].", 1)[-1]
                 raise fail(exc.message, f"frames.{row}.{field}", exc.value) from None
+        try:
+            nl = check_links(self.links, len(self.frames))
+            if nl is not None:
+                check_loops({key: [getattr(f, key) for f in self.frames] for key in FRAME_FIELDS}, nl)
+        except ModelError as exc:
+            where = "links" if exc.path == "links" else f"frames.{(exc.path or '').split('].', 1)[0].split('[')[-1]}." \
+                f"{(exc.path or '').split('].', 1)[-1]}"
+            raise fail(exc.message, where, exc.value) from None
         names = self.joint_names
         seen: dict[str, int] = {}
         for row, frame in enumerate(self.frames):

@@ -49,7 +49,7 @@ class Linearization:
 
 def robot_model(spec: "RobotSpec") -> MDHRobot:
     """The numeric robot of a model file's ``[robot]`` section (validated there already)."""
-    return MDHRobot.from_table([frame.table_row() for frame in spec.frames], gravity=spec.gravity)
+    return MDHRobot.from_table([frame.table_row() for frame in spec.frames], gravity=spec.gravity, links=spec.links)
 
 
 def configuration(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" = None) -> np.ndarray:
@@ -138,6 +138,10 @@ def robot_mechanics(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" 
         positive semi-definite (an equilibrium that gravity makes unstable with the motors locked).
     """
     robot = robot_model(spec)
+    if robot.n_loops:
+        raise ModelError("a machine with closed loops is not lowered into a linear model yet (its dynamics are: "
+                         "sicomat robot --inverse-dynamics, the Python closed_loop_* functions)", path="robot.links",
+                         value=spec.links)
     names = spec.joint_names
     q0 = configuration(spec, q)
     keep_names = list(names if free is None else free)
