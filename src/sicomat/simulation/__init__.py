@@ -21,7 +21,8 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs",
            "TimeSeries", "StepMetrics", "step_metrics", "StepFigures", "step_figures"]
 # the multi-axis runs (simulate_path, circle_test: simulation/paths.py) are not re-exported here:
-# paths.py uses this module's simulate(), and re-exporting it would knot the two (an import cycle)
+# paths.py uses this module's simulate(), and re-exporting it would knot the two (an import cycle); the same
+# for the coupled axes' run (simulate_coupled, CoupledRun: simulation/coupled.py)
 
 
 def loop_program(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, nonlinear: bool = True):
