@@ -257,3 +257,21 @@ def test_the_coupled_plant_and_program_name_each_axis():
     np.testing.assert_array_equal(program.table[0], [0.0, 1.0, 2.0, 2.0, 2.0])
     assert {"X.velocity.error", "Y.current.command", "X.setpoint.position"} <= {*program.slot_names, *program.aliases}
     assert program.aliases["Y.sensor.Y_scale"] == program.slot_names.index("sensor.Y_scale")
+
+
+def test_uncoupled_axes_with_their_own_position_periods_and_quantizers():
+    """Position periods that differ (setpoint tables of different lengths in one table), quantized scales,
+    feedforwards, a delay: still the single-axis runs."""
+    machine = machine_from_dict({"axes": {
+        "X": _axis("X", {"xm": 10.0, "xt": 30.0}, spring=("xm", "xt", 2e6, 500.0), actuator="xm", sensor="xt",
+                   resolution=1e-7, position_period=4 * H, velocity_delay=1, velocity_feedforward=1.0),
+        "Y": _axis("Y", {"yt": 20.0}, actuator="yt", sensor="yt", resolution=5e-8, acceleration_feedforward=0.8)}})
+    loops = (build_servo_loop(machine, "X"), build_servo_loop(machine, "Y"))
+    coupled = CoupledLoop(_stacked(*(loop.mechanics for loop in loops)), loops)
+    profiles = {"X": trapezoid_profile(2e-3, 0.05, 1.0), "Y": trapezoid_profile(1e-3, 0.05, 1.0, start=0.005)}
+    run = simulate_coupled(coupled, profiles, 0.08)
+    for loop in loops:
+        single = simulate(loop, profiles[loop.axis], 0.08)
+        for name in single.names:
+            scale = np.max(np.abs(single[_REFERENCE_SCALE.get(name, name)]))
+            np.testing.assert_allclose(run[loop.axis][name], single[name], rtol=0, atol=1e-12 * scale, err_msg=name)
