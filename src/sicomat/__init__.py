@@ -44,12 +44,14 @@ _EXPORTS: dict[str, str] = {
     "scurve_profile": "motion", "profile_from_spec": "motion",
     # servo
     "ServoLoop": "servo", "build_servo_loop": "servo", "Verdict": "servo", "loop_verdict": "servo",
+    "CoupledLoop": "servo",
     # simulation
     "simulate": "simulation", "simulate_batch": "simulation", "TimeSeries": "simulation", "StepMetrics": "simulation",
     "StepFigures": "simulation", "step_figures": "simulation",
     # (the paths module imports servo/: not imported by the simulation package itself)
     "simulate_path": "simulation.paths", "circle_test": "simulation.paths", "PathRun": "simulation.paths",
     "CircleTest": "simulation.paths",
+    "simulate_coupled": "simulation.coupled", "CoupledRun": "simulation.coupled",
     # frequency
     "LoopAnalysis": "frequency", "Margins": "frequency",
     "stability_margins": "frequency", "closed_loop": "frequency", "sensitivity": "frequency",
@@ -99,8 +101,9 @@ if TYPE_CHECKING:  # the static view of the same names (mypy, IDEs)
     from .mechanics import Dof, Mechanics, ModalResult, Mode, build_mechanics, mechanics_plant, modal_analysis
     from .motion import (Profile, profile_from_spec, ramp_profile, scurve_profile, step_profile, trapezoid_profile)
     from .reduction import ReductionResult, balanced_truncation, modal_truncation, physical_reduction, reduce
-    from .servo import ServoLoop, Verdict, build_servo_loop, loop_verdict
+    from .servo import CoupledLoop, ServoLoop, Verdict, build_servo_loop, loop_verdict
     from .simulation import StepFigures, StepMetrics, TimeSeries, simulate, simulate_batch, step_figures
     from .simulation.paths import CircleTest, PathRun, circle_test, simulate_path
+    from .simulation.coupled import CoupledRun, simulate_coupled
     from .tuning import TimeTargets, TimeTuningResult, TuningResult, TuningTargets, tune_frequency, tune_time
     from .tasks import ModeMap, StrokeTuning, mode_map, tune_over_stroke

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
@@ -20,7 +20,7 @@ from .blocks import controller_kind, drive_model
 from .controller import DiscreteSS, difference_block, filter_block
 from .drive import DriveModel
 from ..errors import ModelError
-from ..mechanics.lumped import Mechanics
+from ..mechanics.lumped import Load, Mechanics
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..description.machine import Machine
@@ -28,7 +28,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..description.servo import ControllerSpec
     from .program import HybridProgram
 
-__all__ = ["ServoLoop", "build_servo_loop", "servo_plant", "servo_program", "SetpointTable", "derived_signals"]
+__all__ = ["ServoLoop", "build_servo_loop", "servo_plant", "drives_plant", "servo_program", "SetpointTable",
+           "derived_signals"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -183,35 +184,99 @@ class _Slots:
         self.aliases[name] = self(target)
 
 
-def servo_plant(loop: ServoLoop, *, disturbance: np.ndarray | None = None) -> "Plant":
-    """The continuous part of the loop: mechanics and current loop, from the current reference.
+class _Prefixed:
+    """One axis's view of the slots of a coupled program: every name it uses is ``<prefix><name>``."""
 
-    States ``(q, q̇, i)``; inputs ``"current.reference"`` (A) and, with ``disturbance`` (a vector of
-    generalised forces per unit input, e.g. the tool vector), an external load ``"disturbance"``; outputs ``sensor.<name>`` (raw sensor units),
-    ``tool.position``, ``tool.velocity``, ``actuator.velocity``, ``drive.current``, ``drive.effort``
-    and every dof's position and velocity.
+    def __init__(self, slots: _Slots, prefix: str) -> None:
+        self.slots, self.prefix = slots, prefix
+
+    def __call__(self, name: str) -> int:
+        return self.slots(self.prefix + name)
+
+    def alias(self, name: str, target: str) -> None:
+        self.slots.alias(self.prefix + name, self.prefix + target)
+
+
+class _Lowering:
+    """The ops and blocks of a program being built on named slots, and the elements every block
+    lowers to (a gain, a quantizer, a delay, a weighted sum, a linear block): an identity element is an
+    alias, a nonlinear one is dropped in a linear program."""
+
+    def __init__(self, slots: "_Slots | _Prefixed", nonlinear: bool, ops: list, blocks: list) -> None:
+        self.s, self.nonlinear, self.ops, self.blocks = slots, nonlinear, ops, blocks
+
+    def block(self, ss: DiscreteSS, inputs, outputs, x0=None) -> int:
+        from . import program as p
+
+        self.blocks.append(p.LinearBlock(ss.A, ss.B, ss.C, ss.D, tuple(inputs), tuple(outputs), x0))
+        return len(self.blocks) - 1
+
+    def gain(self, src: str, dst: str, k: float, period: int) -> None:
+        from . import program as p
+
+        if abs(k - 1.0) <= 1e-12:
+            self.s.alias(dst, src)
+        else:
+            self.ops.append(p.Sum(period=period, inputs=(self.s(src),), weights=(k,), output=self.s(dst)))
+
+    def quantize(self, src: str, dst: str, step: float | None, period: int) -> None:
+        from . import program as p
+
+        if self.nonlinear and step:
+            self.ops.append(p.Quantize(period=period, input=self.s(src), output=self.s(dst), step=step, mode="floor"))
+        else:
+            self.s.alias(dst, src)
+
+    def delay(self, src: str, dst: str, samples: int, period: int) -> None:
+        from . import program as p
+
+        if samples:
+            self.ops.append(p.Delay(period=period, input=self.s(src), output=self.s(dst), samples=samples))
+        else:
+            self.s.alias(dst, src)
+
+    def combine(self, dst: str, terms: list[tuple[str, float]], period: int) -> None:
+        from . import program as p
+
+        terms = [(name, w) for name, w in terms if w != 0.0]
+        if len(terms) == 1 and abs(terms[0][1] - 1.0) <= 1e-12:
+            self.s.alias(dst, terms[0][0])
+        else:
+            self.ops.append(p.Sum(period=period, inputs=tuple(self.s(n) for n, _ in terms),
+                                  weights=tuple(w for _, w in terms), output=self.s(dst)))
+
+
+def drives_plant(mech: Mechanics, drives: "Sequence[tuple[str, DriveModel, Load, np.ndarray]]", *,
+                 disturbance: np.ndarray | None = None) -> "Plant":
+    """Mechanics and the current loops of its drives, ``(prefix, drive, actuator, tool vector)`` each:
+    :func:`servo_plant` (one drive, no prefix) and the coupled plant (one per axis, prefix ``"<axis>."``).
+
+    States ``(q, q̇)`` then ``<prefix>drive.current`` per drive; inputs ``<prefix>current.reference``
+    (and ``"disturbance"``); outputs ``sensor.<name>`` for every sensor, then per drive
+    ``<prefix>tool.position``, ``.tool.velocity``, ``.actuator.velocity``, ``.drive.current``,
+    ``.drive.effort``, then every dof's position and velocity.
     """
     from ..lti.plant import Plant
-
-    mech, drv = loop.mechanics, loop.drive
-    n = mech.n
-    act = mech.actuator(loop.actuator)
-    nx = 2 * n + 1
     from ..mechanics.statespace import second_order_state_space
 
-    forces = [act.vector] + ([np.asarray(disturbance, dtype=float)] if disturbance is not None else [])
+    n, m = mech.n, len(drives)
+    nx = 2 * n + m
+    forces = [act.vector for _, _, act, _ in drives]
+    forces += [np.asarray(disturbance, dtype=float)] if disturbance is not None else []
     A_mech, B_mech = second_order_state_space(mech.mass_factor, mech.damping, mech.stiffness,
                                               np.column_stack(forces))
-    A = np.zeros((nx, nx))                      # eqs. (11)-(12) and the current loop
+    A = np.zeros((nx, nx))                      # eqs. (11)-(12) and the current loops
     A[: 2 * n, : 2 * n] = A_mech
-    A[n: 2 * n, 2 * n] = B_mech[n:, 0] * drv.kt
-    A[2 * n, 2 * n] = -1.0 / drv.tau
     eye = np.eye(nx)
-    columns = [eye[2 * n] / drv.tau]
-    inputs = ["current.reference"]
+    columns, inputs = [], []
+    for j, (prefix, drv, _, _) in enumerate(drives):
+        A[n: 2 * n, 2 * n + j] = B_mech[n:, j] * drv.kt
+        A[2 * n + j, 2 * n + j] = -1.0 / drv.tau
+        columns.append(eye[2 * n + j] / drv.tau)
+        inputs.append(f"{prefix}current.reference")
     if disturbance is not None:
         load = np.zeros(nx)
-        load[: 2 * n] = B_mech[:, 1]
+        load[: 2 * n] = B_mech[:, m]
         columns.append(load)
         inputs.append("disturbance")
     rows, names = [], []
@@ -220,19 +285,46 @@ def servo_plant(loop: ServoLoop, *, disturbance: np.ndarray | None = None) -> "P
         (row[n: 2 * n] if sensor.kind == "velocity" else row[:n])[:] = sensor.vector
         rows.append(row)
         names.append(f"sensor.{sensor.name}")
-    for name, vector, offset in (("tool.position", loop.tool, 0), ("tool.velocity", loop.tool, n),
-                                 ("actuator.velocity", act.vector, n)):
-        row = np.zeros(nx)
-        row[offset: offset + n] = vector
-        rows.append(row)
-        names.append(name)
-    rows += [eye[2 * n], drv.kt * eye[2 * n]]
-    names += ["drive.current", "drive.effort"]
+    for j, (prefix, drv, act, tool) in enumerate(drives):
+        for name, vector, offset in (("tool.position", tool, 0), ("tool.velocity", tool, n),
+                                     ("actuator.velocity", act.vector, n)):
+            row = np.zeros(nx)
+            row[offset: offset + n] = vector
+            rows.append(row)
+            names.append(prefix + name)
+        rows += [eye[2 * n + j], drv.kt * eye[2 * n + j]]
+        names += [f"{prefix}drive.current", f"{prefix}drive.effort"]
     C = np.vstack([np.array(rows), eye[: 2 * n]])       # then every dof's position and velocity
     names += [d.position for d in mech.dofs] + [d.velocity for d in mech.dofs]
-    states = [d.position for d in mech.dofs] + [d.velocity for d in mech.dofs] + ["drive.current"]
+    states = [d.position for d in mech.dofs] + [d.velocity for d in mech.dofs]
+    states += [f"{prefix}drive.current" for prefix, _, _, _ in drives]
     return Plant(A, np.column_stack(columns), C, np.zeros((len(names), len(columns))),
                  tuple(states), tuple(inputs), tuple(names))
+
+
+def servo_plant(loop: ServoLoop, *, disturbance: np.ndarray | None = None) -> "Plant":
+    """The continuous part of the loop: mechanics and current loop, from the current reference.
+
+    States ``(q, q̇, i)``; inputs ``"current.reference"`` (A) and, with ``disturbance`` (a vector of
+    generalised forces per unit input, e.g. the tool vector), an external load ``"disturbance"``; outputs ``sensor.<name>`` (raw sensor units),
+    ``tool.position``, ``tool.velocity``, ``actuator.velocity``, ``drive.current``, ``drive.effort``
+    and every dof's position and velocity.
+    """
+    mech = loop.mechanics
+    return drives_plant(mech, [("", loop.drive, mech.actuator(loop.actuator), loop.tool)], disturbance=disturbance)
+
+
+def friction_links(mech: Mechanics, nonlinear: bool) -> list:
+    """The friction links the simulator steps with Coulomb friction (none in a linear program)."""
+    return [f for f in mech.frictions if nonlinear and (f.coulomb > 0 or f.static > 0)]
+
+
+def loop_reads(loop: ServoLoop) -> set[str]:
+    """The continuous outputs an axis's discrete ops read (in its own names): its sensors, its
+    actuator's speed (the drive's voltage limit)."""
+    ctrl = loop.controller
+    return {f"sensor.{ctrl.position_sensor}", f"sensor.{ctrl.velocity_sensor or ctrl.position_sensor}",
+            "actuator.velocity"}
 
 
 def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool = True) -> "HybridProgram":
@@ -240,55 +332,44 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
 
     ``nonlinear=False`` drops the limits, quantizers and Coulomb friction (the linear loop).
     """
-    from . import program as p
-
-    mech, drv, ctrl = loop.mechanics, loop.drive, loop.controller
-    h = loop.base_period
-    Np = loop.position_ratio
+    mech = loop.mechanics
     s = _Slots()
-
     # ---- continuous part: mechanics (q, q̇) + current state i; only the outputs the controller reads
     # are computed at every step, the others come from the recorded states afterwards
     plant = servo_plant(loop)
-    read = {f"sensor.{ctrl.position_sensor}", f"sensor.{ctrl.velocity_sensor or ctrl.position_sensor}",
-            "actuator.velocity"}
+    read = loop_reads(loop)
     rows = [i for i, name in enumerate(plant.outputs) if name in read]
-    links = [f for f in mech.frictions if nonlinear and (f.coulomb > 0 or f.static > 0)]
+    links = friction_links(mech, nonlinear)
     for name in [plant.outputs[i] for i in rows] + [f"friction.{link.name}" for link in links]:
         s(name)                 # their slots first, in this order (the matrices come in _assemble)
+    low = _Lowering(s, nonlinear, [], [])
+    axis_ops(loop, mech, low)
+    if loop.controller.velocity_loop == "continuous":
+        return _analog_program(loop, plant, setpoints, s, low.ops, read_rows=rows, links=links)
+    C = plant.C[rows]
+    return _assemble(mech, loop.base_period, setpoints.columns, s, low.ops, low.blocks, links, plant.A,
+                     plant.B[:, :1], C, np.zeros((C.shape[0], 1)), ["current.applied"],
+                     [plant.outputs[i] for i in rows])
 
-    ops: list = []
-    blocks: list = []
 
-    def block(ss: DiscreteSS, inputs, outputs, period: int, x0=None) -> int:
-        blocks.append(p.LinearBlock(ss.A, ss.B, ss.C, ss.D, tuple(inputs), tuple(outputs), x0))
-        return len(blocks) - 1
+def axis_ops(loop: ServoLoop, mech: Mechanics, low: _Lowering, *, column: int = 0) -> None:
+    """The discrete ops of one axis, appended to ``low``: the one lowering of an axis's loop, used by
+    :func:`servo_program` and by the coupled program (:mod:`sicomat.servo.coupled`, on a prefixed view
+    of the slots).
 
-    def gain(src: str, dst: str, k: float, period: int) -> None:
-        if abs(k - 1.0) <= 1e-12:
-            s.alias(dst, src)
-        else:
-            ops.append(p.Sum(period=period, inputs=(s(src),), weights=(k,), output=s(dst)))
+    Reads the slots ``sensor.<name>`` (the sensors, found by name in ``mech``) and
+    ``actuator.velocity``, its setpoints from the table's columns ``column .. column + 2`` (position,
+    velocity, acceleration), and writes ``current.applied``, the drive's current reference; a
+    continuous velocity loop stops at the velocity command and the feedforward effort (the caller closes
+    it in the continuous part).
+    """
+    from . import program as p
 
-    def quantize(src: str, dst: str, step: float | None, period: int) -> None:
-        if nonlinear and step:
-            ops.append(p.Quantize(period=period, input=s(src), output=s(dst), step=step, mode="floor"))
-        else:
-            s.alias(dst, src)
-
-    def delay(src: str, dst: str, samples: int, period: int) -> None:
-        if samples:
-            ops.append(p.Delay(period=period, input=s(src), output=s(dst), samples=samples))
-        else:
-            s.alias(dst, src)
-
-    def combine(dst: str, terms: list[tuple[str, float]], period: int) -> None:
-        terms = [(name, w) for name, w in terms if w != 0.0]
-        if len(terms) == 1 and abs(terms[0][1] - 1.0) <= 1e-12:
-            s.alias(dst, terms[0][0])
-        else:
-            ops.append(p.Sum(period=period, inputs=tuple(s(n) for n, _ in terms),
-                             weights=tuple(w for _, w in terms), output=s(dst)))
+    drv, ctrl = loop.drive, loop.controller
+    h = loop.base_period
+    Np = loop.position_ratio
+    s, ops, nonlinear = low.s, low.ops, low.nonlinear
+    gain, quantize, delay, combine, block = low.gain, low.quantize, low.delay, low.combine, low.block
 
     pos_sensor = mech.sensor(ctrl.position_sensor)
     vel_sensor = mech.sensor(ctrl.velocity_sensor or ctrl.position_sensor)
@@ -298,8 +379,8 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
         quantize(f"sensor.{vel_sensor.name}", "velocity.sampled", vel_sensor.step, 1)
 
     # ---- position loop (period Np): setpoints, sampled feedback, P law, computation delay
-    for column, name in enumerate(("setpoint.position", "setpoint.velocity", "setpoint.acceleration")):
-        ops.append(p.Setpoint(period=Np, column=column, output=s(name)))
+    for offset, name in enumerate(("setpoint.position", "setpoint.velocity", "setpoint.acceleration")):
+        ops.append(p.Setpoint(period=Np, column=column + offset, output=s(name)))
     if ctrl.position_loop == "continuous":
         s.alias("position.sampled", f"sensor.{pos_sensor.name}")     # read continuously, unquantized
     elif vel_sensor.name == pos_sensor.name and vel_sensor.kind == "position" and not analog:
@@ -323,17 +404,17 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     if analog:
         if ctrl.acceleration_feedforward:
             gain("feedforward.acceleration", "feedforward.effort", ctrl.acceleration_feedforward * loop.m_rigid, 1)
-        return _analog_program(loop, plant, setpoints, s, ops, read_rows=rows, links=links)
+        return
     if vel_sensor.kind == "velocity":
         gain(f"sensor.{vel_sensor.name}", "velocity.raw", 1.0 / loop.velocity_gain, 1)
     else:
         diff = difference_block(h)
         diff = DiscreteSS(diff.A, diff.B, diff.C / loop.velocity_gain, diff.D / loop.velocity_gain)
-        blk = block(diff, [s("velocity.sampled")], [s("velocity.raw")], 1)
+        blk = block(diff, [s("velocity.sampled")], [s("velocity.raw")])
         ops += [p.LinearOutput(block=blk), p.LinearUpdate(block=blk)]
     if ctrl.velocity_filter is not None:
         flt = block(_filter(ctrl.velocity_filter, h, f"axes.{loop.axis}.controller.velocity_filter"), [s("velocity.raw")],
-                    [s("velocity.measured")], 1)
+                    [s("velocity.measured")])
         ops += [p.LinearOutput(block=flt), p.LinearUpdate(block=flt)]
     else:
         s.alias("velocity.measured", "velocity.raw")
@@ -353,7 +434,7 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
                      np.vstack([law.C / drv.kt, law.C]), np.vstack([law.D / drv.kt, np.zeros_like(law.D)]))
     gated = "velocity.error_gated" if aw == "clamping" else "velocity.error"
     pi = block(law, [s("velocity.error"), s(gated), s("current.excess"), s("velocity.measured")],
-               [s("current.feedback"), s("velocity.integral")], 1)
+               [s("current.feedback"), s("velocity.integral")])
     ops.append(p.LinearOutput(block=pi))
     combine("current.unsaturated", [("current.feedback", 1.0),
                                     ("feedforward.acceleration", ctrl.acceleration_feedforward * loop.m_rigid / drv.kt)],
@@ -373,7 +454,7 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
     signal = "current.reference"
     for i, spec in enumerate(ctrl.current_filters):
         out = f"current.filter{i + 1}"
-        flt = block(_filter(spec, h, f"axes.{loop.axis}.controller.current_filters.{i}"), [s(signal)], [s(out)], 1)
+        flt = block(_filter(spec, h, f"axes.{loop.axis}.controller.current_filters.{i}"), [s(signal)], [s(out)])
         ops += [p.LinearOutput(block=flt), p.LinearUpdate(block=flt)]
         signal = out
     delay(signal, "current.delayed", ctrl.velocity_delay, 1)
@@ -387,10 +468,6 @@ def servo_program(loop: ServoLoop, setpoints: SetpointTable, *, nonlinear: bool 
                               step=2.0 * drv.i_peak / 2 ** ctrl.command_bits, mode="round"))
     else:
         s.alias("current.applied", "current.limited")
-
-    C = plant.C[rows]
-    return _assemble(loop, setpoints, s, ops, blocks, links, plant.A, plant.B[:, :1], C,
-                     np.zeros((C.shape[0], 1)), ["current.applied"], [plant.outputs[i] for i in rows])
 
 
 def _analog_program(loop: ServoLoop, plant: "Plant", setpoints: SetpointTable, s: _Slots, ops: list, *,
@@ -407,18 +484,18 @@ def _analog_program(loop: ServoLoop, plant: "Plant", setpoints: SetpointTable, s
     rows = [np.concatenate([plant.C[i], np.zeros(nc + len(closed.inputs))]) for i in read_rows]
     CD = np.array(rows + list(closed.outputs.values()))
     s.alias("current.reference", "current.command")
-    return _assemble(loop, setpoints, s, ops, [], links, closed.A, closed.B, CD[:, : nx + nc], CD[:, nx + nc:],
-                     list(closed.inputs), [plant.outputs[i] for i in read_rows] + list(closed.outputs))
+    return _assemble(loop.mechanics, loop.base_period, setpoints.columns, s, ops, [], links, closed.A, closed.B,
+                     CD[:, : nx + nc], CD[:, nx + nc:], list(closed.inputs),
+                     [plant.outputs[i] for i in read_rows] + list(closed.outputs))
 
 
-def _assemble(loop: ServoLoop, setpoints: SetpointTable, s: _Slots, ops: list, blocks: list, links: list,
+def _assemble(mech: Mechanics, step: float, table: np.ndarray, s: _Slots, ops: list, blocks: list, links: list,
               A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, inputs: list[str],
               outputs: list[str]) -> "HybridProgram":
     """The hybrid program: the continuous part ``(A, B, C, D)`` (its first ``2n`` states the
     mechanics' ``(q, q̇)``) with the friction links, the ops and blocks, the setpoint table."""
     from . import program as p
 
-    mech = loop.mechanics
     n, nx = mech.n, A.shape[0]
     from ..mechanics.statespace import second_order_input
 
@@ -434,19 +511,22 @@ def _assemble(loop: ServoLoop, setpoints: SetpointTable, s: _Slots, ops: list, b
         x0=np.zeros(nx), input_slots=tuple(s(name) for name in inputs),
         output_slots=tuple(s(name) for name in outputs),
         friction_slots=tuple(s(f"friction.{link.name}") for link in links))
-    return p.HybridProgram(step=loop.base_period, slot_names=tuple(s.names), continuous=continuous,
-                           blocks=tuple(blocks), ops=tuple(ops), table=setpoints.columns,
+    return p.HybridProgram(step=step, slot_names=tuple(s.names), continuous=continuous,
+                           blocks=tuple(blocks), ops=tuple(ops), table=table,
                            record=tuple(range(len(s.names))), aliases=dict(s.aliases))
 
 
 def derived_signals(loop: ServoLoop, signals: dict[str, np.ndarray], fine_setpoint: np.ndarray,
-                    states: np.ndarray) -> dict[str, np.ndarray]:
+                    states: np.ndarray, *, outputs: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Signals computed after a run rather than at every step: every output of the continuous part
-    (from the states, shape ``(n_steps, nx)``), the setpoint at the base step and the following
+    (from the states, shape ``(n_steps, nx)``; or ``outputs``, those of :func:`servo_plant` by name,
+    computed by the caller: an axis of a coupled run), the setpoint at the base step and the following
     errors against it, the measured position and position error, the effort command."""
-    plant = servo_plant(loop)
-    outputs = states[:, : plant.n_states] @ plant.C.T      # analog loops append controller states
-    out = {name: outputs[:, i] for i, name in enumerate(plant.outputs)}
+    if outputs is None:
+        plant = servo_plant(loop)
+        values = states[:, : plant.n_states] @ plant.C.T      # analog loops append controller states
+        outputs = {name: values[:, i] for i, name in enumerate(plant.outputs)}
+    out = dict(outputs)
     position = out[f"sensor.{loop.controller.position_sensor}"] / loop.position_gain
     out.update({"setpoint.fine": fine_setpoint,
                 "following_error": fine_setpoint - position,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time as _time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
@@ -21,7 +21,8 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs",
            "TimeSeries", "StepMetrics", "step_metrics", "StepFigures", "step_figures"]
 # the multi-axis runs (simulate_path, circle_test: simulation/paths.py) are not re-exported here:
-# paths.py uses this module's simulate(), and re-exporting it would knot the two (an import cycle)
+# paths.py uses this module's simulate(), and re-exporting it would knot the two (an import cycle); the same
+# for the coupled axes' run (simulate_coupled, CoupledRun: simulation/coupled.py)
 
 
 def loop_program(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, nonlinear: bool = True):
@@ -51,6 +52,21 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dura
             raise ModelError(f"variant {v}: the loop periods differ from variant 0's "
                              f"({loop.base_period:g} s / {loop.position_ratio} against {h:g} s / {Np})",
                              path=f"axes.{loop.axis}.controller")
+    n_steps = run_steps(loops, duration)
+    n_pos = -(-n_steps // Np)
+    per_step = recorded if recorded is not None else _values_per_step(first, profile, nonlinear)
+    delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in loops)
+    _require_memory(n_steps, per_step, n_pos, delayed)
+    t_pos = np.arange(n_pos) * Np * h
+    table = SetpointTable(*profile.evaluate(t_pos))
+    return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
+
+
+def run_steps(loops: Sequence["ServoLoop"], duration: float) -> int:
+    """The base steps of a run of ``duration`` seconds of loops sharing their velocity period; a
+    :class:`~sicomat.errors.ModelError` for a duration that is not a number of seconds > 0, shorter
+    than two steps, or not longer than a loop's computation or feedforward delay."""
+    h = loops[0].base_period
     try:
         duration = float(duration)
     except (TypeError, ValueError):
@@ -69,13 +85,7 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dura
             if delay >= duration:
                 raise ModelError(f"the delay ({delay:g} s) is not shorter than the run ({duration:g} s)",
                                  path=f"axes.{loop.axis}.controller.{key}", value=getattr(ctrl, key))
-    n_pos = -(-n_steps // Np)
-    per_step = recorded if recorded is not None else _values_per_step(first, profile, nonlinear)
-    delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in loops)
-    _require_memory(n_steps, per_step, n_pos, delayed)
-    t_pos = np.arange(n_pos) * Np * h
-    table = SetpointTable(*profile.evaluate(t_pos))
-    return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
+    return n_steps
 
 
 def _values_per_step(loop: "ServoLoop", profile: "SetpointProfile", nonlinear: bool) -> int:
@@ -143,10 +153,17 @@ def simulate(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, 
     wall = _time.perf_counter() - start
     notify(progress, task, n_steps, n_steps)
     signals = named_signals(loop, program, result.records, profile.evaluate(result.time)[0], result.states)
+    return axis_series(loop, profile, result.time, signals, wall=wall, nonlinear=nonlinear)
+
+
+def axis_series(loop: "ServoLoop", profile: "SetpointProfile", time: np.ndarray, signals: dict[str, np.ndarray], *,
+                wall: float, nonlinear: bool) -> TimeSeries:
+    """An axis's :class:`TimeSeries` from its named signals (:func:`named_signals`): the step metrics of
+    its move, the run's information."""
     actual = signals["setpoint.fine"] - signals["following_error"]
-    metrics = step_metrics(result.time, signals["setpoint.fine"], actual, profile.distance, start=profile.breaks[0])
-    return TimeSeries(time=result.time, signals=signals, metrics=metrics,
-                      info={"wall_time_s": wall, "samples": n_steps, "step": loop.base_period,
+    metrics = step_metrics(time, signals["setpoint.fine"], actual, profile.distance, start=profile.breaks[0])
+    return TimeSeries(time=time, signals=signals, metrics=metrics,
+                      info={"wall_time_s": wall, "samples": len(time), "step": loop.base_period,
                             "axis": loop.axis, "notes": simulation_notes(loop, nonlinear),
                             "effort_unit": effort_unit(loop)})
 
@@ -169,14 +186,22 @@ def simulation_notes(loop: "ServoLoop", nonlinear: bool = True) -> list[str]:
 
 
 def named_signals(loop: "ServoLoop", program, records: np.ndarray, fine_setpoint: np.ndarray,
-                  states: np.ndarray) -> dict[str, np.ndarray]:
-    """Every signal of a run by name: the recorded slots, their aliases and the derived signals."""
+                  states: np.ndarray, *, view: Mapping[str, str] | None = None,
+                  outputs: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    """Every signal of a run by name: the recorded slots, their aliases and the derived signals.
+
+    For one axis of a coupled program: ``view`` maps the axis's signal names to the program's slot
+    names (:func:`sicomat.servo.coupled.axis_view`), ``outputs`` are the continuous outputs as a
+    single-axis plant names them (see :func:`sicomat.servo.loop.derived_signals`).
+    """
     from ..servo.loop import derived_signals
 
     signals = {name: records[:, i] for i, name in enumerate(program.slot_names)}
     for name, index in program.aliases.items():
         signals[name] = records[:, index]
-    derived = derived_signals(loop, signals, fine_setpoint, states)
+    if view is not None:
+        signals = {own: signals[slot] for own, slot in view.items()}
+    derived = derived_signals(loop, signals, fine_setpoint, states, outputs=outputs)
     return {**signals, **{name: value for name, value in derived.items() if name not in signals}}
 
 
