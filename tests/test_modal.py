@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 from numpy.testing import assert_allclose
 
 from sicomat import ChainSpec, LumpedSpec, build_mechanics, load_model, modal_analysis
+from sicomat.robotics.lowering import axis_mechanics
 
 EXAMPLES_DIR = Path(__file__).resolve().parents[1] / "examples"
 EXAMPLES = sorted(p.stem for p in EXAMPLES_DIR.glob("*.toml"))
@@ -21,7 +22,7 @@ TWO_PI = 2 * math.pi
 
 
 def _modal(name):
-    mech = build_mechanics(load_model(EXAMPLES_DIR / f"{name}.toml").axis().mechanics)
+    mech = axis_mechanics(load_model(EXAMPLES_DIR / f"{name}.toml"))   # a robot's first axis: its linearisation
     return mech, modal_analysis(mech)
 
 

@@ -122,7 +122,8 @@ class Machine(Spec):
         order; an ``[axes.<joint>]`` table gives its drive, controller, trajectory and tool)."""
         if self.robot is None:
             if not self.axes:
-                raise fail("a machine needs at least one axis ([axes.<name>]) or a [robot] section", "axes", None)
+                raise fail("missing required key: a machine needs at least one axis ([axes.<name>]) or a [robot] section",
+                       "axes", None)
             for name, axis in self.axes.items():
                 if axis.mechanics is None:
                     raise fail("missing: every axis needs [axes.<name>.mechanics] (or the machine a [robot] "
