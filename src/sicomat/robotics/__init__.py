@@ -2,10 +2,12 @@
 parameters (SYMORO's tables), their geometric, kinematic and dynamic models (numpy)."""
 
 from .base import BaseParameters, base_parameters
+from .codegen import symbolic_export
 from .dynamics import (direct_dynamics, inertia_matrix, inverse_dynamics, inverse_dynamics_batch, regressor,
                        regressor_batch)
 from .dynamics import inertia_matrix_batch
 from .geometry import jacobian, transform, transforms
+from .symbolic import SymbolicModel, SymbolicModels, symbolic_models
 from .table import FRAME_FIELDS, PARAMETER_FIELDS, MDHRobot
 
 __all__ = [
@@ -24,4 +26,8 @@ __all__ = [
     "regressor_batch",
     "base_parameters",
     "BaseParameters",
+    "symbolic_models",
+    "SymbolicModels",
+    "SymbolicModel",
+    "symbolic_export",
 ]
