@@ -34,7 +34,7 @@ import numpy as np
 import pytest
 import sympy
 
-from sicomat.robotics import MDHRobot, symbolic_export, symbolic_models
+from sicomat.robotics import PARAMETER_FIELDS, MDHRobot, symbolic_export, symbolic_models
 
 PI = math.pi
 REL = 1e-10
@@ -110,8 +110,8 @@ def _states(robot: MDHRobot, count: int = 6):
         yield rng.uniform(-PI, PI, n), qd, rng.uniform(-5, 5, n)
 
 
-def _check(robot: MDHRobot, tau_of, a_of, t_of) -> None:
-    """The three models against the numeric core at random states."""
+def _check(robot: MDHRobot, tau_of, a_of, t_of, g_of) -> None:
+    """The four models against the numeric core at random states (gravity: Newton–Euler at rest)."""
     for q, qd, qdd in _states(robot):
         expected = robot.inverse_dynamics(q, qd, qdd)
         scale = max(1.0, float(np.max(np.abs(expected))))
@@ -119,6 +119,8 @@ def _check(robot: MDHRobot, tau_of, a_of, t_of) -> None:
         inertia = robot.inertia_matrix(q)
         np.testing.assert_allclose(a_of(q), inertia, rtol=0, atol=REL * max(1.0, float(np.max(np.abs(inertia)))))
         np.testing.assert_allclose(t_of(q), robot.transforms(q), rtol=0, atol=REL)
+        gravity = robot.inverse_dynamics(q, 0 * q, 0 * q)
+        np.testing.assert_allclose(g_of(q), gravity, rtol=0, atol=REL * max(1.0, float(np.max(np.abs(gravity)))))
 
 
 # --------------------------------------------------------------------------- the symbolic models
@@ -131,8 +133,8 @@ def case(request):
 def test_lambdified_models_agree_with_the_numeric_core(case):
     _, robot, models, _ = case
     p = list(models.parameters.values())
-    t, tau, a = (m.lambdify() for m in models.models)
-    _check(robot, lambda q, qd, qdd: tau(q, qd, qdd, p), lambda q: a(q, p), lambda q: t(q, p))
+    t, tau, a, g = (m.lambdify() for m in models.models)
+    _check(robot, lambda q, qd, qdd: tau(q, qd, qdd, p), lambda q: a(q, p), lambda q: t(q, p), lambda q: g(q, p))
 
 
 def test_exported_python_agrees_and_imports_only_math(case):
@@ -143,7 +145,7 @@ def test_exported_python_agrees_and_imports_only_math(case):
     assert imported == ["math"]
     module: dict = {}
     exec(compile(text, "m_models.py", "exec"), module)
-    _check(robot, module["inverse_dynamics"], module["inertia_matrix"], module["transforms"])
+    _check(robot, module["inverse_dynamics"], module["inertia_matrix"], module["transforms"], module["gravity_torques"])
     # p is a mapping by name: another value of a parameter changes the torques like the robot's would
     name = next(iter(module["PARAMETERS"]))
     changed = {**module["PARAMETERS"], name: module["PARAMETERS"][name] * 1.5}
@@ -177,15 +179,16 @@ def test_exported_c_compiles_cleanly_and_agrees(case, tmp_path):
         return out
 
     _check(robot, lambda q, qd, qdd: call("inverse_dynamics", (n,), q, qd, qdd),
-           lambda q: call("inertia_matrix", (n, n), q), lambda q: call("transforms", (nf + 1, 4, 4), q))
+           lambda q: call("inertia_matrix", (n, n), q), lambda q: call("transforms", (nf + 1, 4, 4), q),
+           lambda q: call("gravity_torques", (n,), q))
 
 
 def test_symbol_policy_and_readable_text(case):
     label, robot, models, files = case
     names = set(models.parameter_names)
-    expected = {f"{f}{j + 1}" for j in range(robot.n_frames) for f, v in
-                zip(("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M", "IA", "FV", "FS"), robot.chi[j]) if v != 0}
-    assert expected <= names                      # every nonzero dynamic parameter, no zero one
+    expected = {f"{f}{j + 1}" for j in range(robot.n_frames) for f, v in zip(PARAMETER_FIELDS, robot.chi[j]) if v != 0}
+    dynamic = {name for name in names if name.rstrip("0123456789") in PARAMETER_FIELDS}
+    assert dynamic == expected                    # every nonzero dynamic parameter, no zero one
     assert [s.name for s in models.q] == [f"q{k + 1}" for k in range(robot.n_joints)]
     for symbol, value in models.parameters.items():
         assert value != 0.0
@@ -221,7 +224,8 @@ def test_planar_2r_equals_its_closed_form():
     zz1r = s["ZZ1"] + length ** 2 * s["M2"] + s["IA1"]
     tau1 = (zz1r + s["ZZ2"] + 2 * a) * qdd1 + (s["ZZ2"] + a) * qdd2 - b * (2 * qd1 * qd2 + qd2 ** 2) \
         + s["FV1"] * qd1 + s["FS1"] * sympy.sign(qd1)
-    tau2 = (s["ZZ2"] + a) * qdd1 + (s["ZZ2"] + s["IA2"]) * qdd2 + b * qd1 ** 2 + s["FV2"] * qd2 + s["FS2"] * sympy.sign(qd2)
+    tau2 = (s["ZZ2"] + a) * qdd1 + (s["ZZ2"] + s["IA2"]) * qdd2 + b * qd1 ** 2 \
+        + s["FV2"] * qd2 + s["FS2"] * sympy.sign(qd2)
     got = models.inverse_dynamics.expressions()
     inertia = models.inertia_matrix.expressions()
     for expr, expected in [(got[0], tau1), (got[1], tau2), (inertia[0], zz1r + s["ZZ2"] + 2 * a),
@@ -245,7 +249,8 @@ def test_export_is_byte_identical_under_other_hash_seeds():
     script = _EXPORT.format(tests=str(Path(__file__).parent))
     outputs = []
     for seed in ("1", "2"):
-        env = {**os.environ, "PYTHONHASHSEED": seed, "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")])}
+        path = os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")])
+        env = {**os.environ, "PYTHONHASHSEED": seed, "PYTHONPATH": path}
         run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env)
         assert run.returncode == 0, run.stderr
         outputs.append(run.stdout)
@@ -268,3 +273,8 @@ def test_rx90_generation_takes_seconds():
 def test_export_name_must_be_a_c_identifier():
     with pytest.raises(ValueError, match="C identifier"):
         symbolic_export(planar_2r(), name="2r-arm")
+
+
+def test_the_robot_method_delegates():
+    robot = planar_2r()
+    assert robot.symbolic().inverse_dynamics.outputs == symbolic_models(robot).inverse_dynamics.outputs

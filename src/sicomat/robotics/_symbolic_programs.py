@@ -138,14 +138,17 @@ def transforms_program(policy: Policy) -> tuple[Equations, Outputs]:
     return eq, outputs
 
 
-def _torque(policy: Policy, row: int, sigma: int, f: sympy.Matrix, n: sympy.Matrix) -> sympy.Expr:
+def _torque(policy: Policy, row: int, sigma: int, f: sympy.Matrix, n: sympy.Matrix, at_rest: bool) -> sympy.Expr:
+    if at_rest:
+        return f[2] if sigma == 1 else n[2]
     ia, fv, fs = policy.chi[row][10:13]
     qd, qdd = policy.joint(row, policy.qd), policy.joint(row, policy.qdd)
     return (f[2] if sigma == 1 else n[2]) + ia * qdd + fv * qd + fs * sympy.sign(qd)
 
 
-def newton_euler_program(policy: Policy) -> tuple[Equations, Outputs]:
-    """Torques by the Newton–Euler recursion of the notes §2.3, every entry named on the way."""
+def newton_euler_program(policy: Policy, at_rest: bool = False) -> tuple[Equations, Outputs]:
+    """Torques by the Newton–Euler recursion of the notes §2.3, every entry named on the way; with
+    ``at_rest`` (``qd = qdd = 0``) the gravity torques alone."""
     robot, eq = policy.robot, Equations()
     nf, zero = robot.n_frames, sympy.zeros(3, 1)
     w, wd, vd, u = [zero], [zero], [-policy.gravity], [sympy.zeros(3, 3)]
@@ -154,7 +157,8 @@ def newton_euler_program(policy: Policy) -> tuple[Equations, Outputs]:
         j, a, sigma = row + 1, int(robot.ant[row]), int(robot.sigma[row])
         rot, pos = policy.local(eq, row)
         local.append((rot, pos))
-        qd, qdd = policy.joint(row, policy.qd), policy.joint(row, policy.qdd)
+        qd, qdd = (sympy.S.Zero, sympy.S.Zero) if at_rest else (policy.joint(row, policy.qd),
+                                                                 policy.joint(row, policy.qdd))
         wi = eq.vector(rot.T * w[a], f"WI{j}")
         vs = eq.vector(vd[a] + u[a] * pos, f"VS{j}")
         vdj = rot.T * vs
@@ -180,7 +184,7 @@ def newton_euler_program(policy: Policy) -> tuple[Equations, Outputs]:
         j, a, sigma = row + 1, int(robot.ant[row]), int(robot.sigma[row])
         f, n = eq.vector(forces[row], f"FT{j}"), eq.vector(moments[row], f"NT{j}")
         if sigma != 2:
-            torques[int(robot.joint_of_frame[row])] = _torque(policy, row, sigma, f, n)
+            torques[int(robot.joint_of_frame[row])] = _torque(policy, row, sigma, f, n, at_rest)
         if a > 0:
             rot, pos = local[row]
             fa = eq.vector(rot * f, f"FDI{j}")

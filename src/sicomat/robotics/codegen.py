@@ -9,7 +9,7 @@ the names the recursions gave them, and nothing depends on hashing, time or the 
 Argument layout, the same in Python and C: ``q``, ``qd``, ``qdd`` hold the joint values in joint
 order (fixed frames skipped), ``p`` the parameters in the order of
 :attr:`~sicomat.robotics.symbolic.SymbolicModels.parameters` (listed, with the robot's values, in each
-file's header). The outputs are row-major: ``tau[n]``, ``A[n * n]`` (both triangles),
+file's header). The outputs are row-major: ``tau[n]``, ``A[n * n]`` (both triangles), ``Q[n]``,
 ``T[(NF + 1) * 16]`` (``0T_j`` for j = 0..NF). Python takes ``p`` as a mapping name -> value and
 defaults it to the robot's ``PARAMETERS``; C takes an array, ``<name>_parameters`` holding the
 robot's values.
@@ -34,15 +34,17 @@ __all__ = ["symbolic_export"]
 _KINDS = {0: "revolute", 1: "prismatic"}
 _PY_OUTPUT = {"transforms": "0T_j for j = 0..NF: NF + 1 nested lists 4 x 4",
               "inverse_dynamics": "joint torques/forces tau, a list of n",
-              "inertia_matrix": "the inertia matrix A, n nested lists of n"}
+              "inertia_matrix": "the inertia matrix A, n nested lists of n",
+              "gravity_torques": "the gravity torques Q, a list of n"}
 _C_OUTPUT = {"transforms": "T[(NF + 1) * 16], 0T_j row-major, j = 0..NF",
-             "inverse_dynamics": "tau[n]", "inertia_matrix": "A[n * n], row-major"}
+             "inverse_dynamics": "tau[n]", "inertia_matrix": "A[n * n], row-major", "gravity_torques": "Q[n]"}
 _TITLE = {"transforms": "Transforms 0T_j of the frames in the base (j = 0..NF)",
           "inverse_dynamics": "Inverse dynamic model (Newton-Euler): tau = f(q, qd, qdd)",
-          "inertia_matrix": "Inertia matrix (composite links): A(q)"}
+          "inertia_matrix": "Inertia matrix (composite links): A(q)",
+          "gravity_torques": "Gravity torques (Newton-Euler at qd = qdd = 0): Q(q)"}
 _C_ARGUMENT = {"q": "const double q[]", "qd": "const double qd[]", "qdd": "const double qdd[]",
                "p": "const double p[]"}
-_C_RESULT = {"transforms": "T", "inverse_dynamics": "tau", "inertia_matrix": "A"}
+_C_RESULT = {"transforms": "T", "inverse_dynamics": "tau", "inertia_matrix": "A", "gravity_torques": "Q"}
 
 
 def symbolic_export(robot: "MDHRobot", name: str = "robot") -> dict[str, str]:
@@ -59,10 +61,12 @@ def symbolic_export(robot: "MDHRobot", name: str = "robot") -> dict[str, str]:
     -------
     dict of str to str
         ``<name>_models.py`` (functions ``transforms(q, p=PARAMETERS)``, ``inverse_dynamics(q, qd, qdd,
-        p=PARAMETERS)``, ``inertia_matrix(q, p=PARAMETERS)``, importing only :mod:`math`),
+        p=PARAMETERS)``, ``inertia_matrix(q, p=PARAMETERS)``, ``gravity_torques(q, p=PARAMETERS)``,
+        importing only :mod:`math`),
         ``<name>_models.c`` and ``<name>_models.h`` (``void <name>_transforms(const double q[], const
         double p[], double T[])``, ``<name>_inverse_dynamics(q, qd, qdd, p, tau)``,
-        ``<name>_inertia_matrix(q, p, A)``), ``<name>_models.txt`` (the equations, one per line).
+        ``<name>_inertia_matrix(q, p, A)``, ``<name>_gravity_torques(q, p, Q)``), ``<name>_models.txt``
+        (the equations, one per line).
         Byte-identical from run to run.
 
     Raises
@@ -112,14 +116,15 @@ def _inputs(model: SymbolicModel) -> list[tuple[str, int, sympy.Symbol]]:
 
 # ----------------------------------------------------------------------------- Python
 def _python(models: SymbolicModels, header: list[str]) -> str:
-    out = ['"""' + header[0], *header[1:], "", "Arguments: q, qd, qdd are sequences of n floats; p maps each parameter name to",
-           'its value and defaults to PARAMETERS, the robot\'s values."""', "", "import math", "",
-           "PARAMETERS = {"]
+    out = ['"""' + header[0], *header[1:], "",
+           "Arguments: q, qd, qdd are sequences of n floats; p maps each parameter name to",
+           'its value and defaults to PARAMETERS, the robot\'s values."""', "", "import math", "", "PARAMETERS = {"]
     out += [f"    {symbol.name!r}: {value!r}," for symbol, value in models.parameters.items()]
     out += ["}"]
     for model in models.models:
         signature = ", ".join(a if a != "p" else "p=PARAMETERS" for a in model.arguments)
-        out += ["", "", f"def {model.name}({signature}):", f'    """{_TITLE[model.name]}; returns {_PY_OUTPUT[model.name]}."""']
+        out += ["", "", f"def {model.name}({signature}):",
+                f'    """{_TITLE[model.name]}; returns {_PY_OUTPUT[model.name]}."""']
         for argument, k, symbol in _inputs(model):
             out.append(f"    {symbol} = {argument}[{k}]" if argument != "p" else f"    {symbol} = p[{symbol.name!r}]")
         out += [f"    {symbol} = {pycode(expr)}" for symbol, expr in model.assignments]
@@ -168,7 +173,10 @@ def _c_source(models: SymbolicModels, header: list[str], name: str) -> str:
     for model in models.models:
         result = _C_RESULT[model.name]
         out += ["", f"/* {_TITLE[model.name]}. */", _c_signature(model, name), "{"]
-        out += [f"    const double {symbol} = {argument}[{k}];" for argument, k, symbol in _inputs(model)]
+        inputs = _inputs(model)
+        unused = [a for a in model.arguments if a not in {argument for argument, _, _ in inputs}]
+        out += [f"    (void){argument};  /* not needed by this robot's model */" for argument in unused]
+        out += [f"    const double {symbol} = {argument}[{k}];" for argument, k, symbol in inputs]
         out += [f"    const double {symbol} = {ccode(expr, standard='C99')};" for symbol, expr in model.assignments]
         out += [f"    {result}[{k}] = {ccode(expr, standard='C99')};" for k, (_, expr) in enumerate(model.outputs)]
         out.append("}")

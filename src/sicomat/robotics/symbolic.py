@@ -43,7 +43,7 @@ class SymbolicModel:
     Attributes
     ----------
     name : str
-        ``"transforms"``, ``"inverse_dynamics"`` or ``"inertia_matrix"``.
+        ``"transforms"``, ``"inverse_dynamics"``, ``"inertia_matrix"`` or ``"gravity_torques"``.
     arguments : tuple of str
         The argument names of the generated functions, in order (``("q", "qd", "qdd", "p")``...).
     inputs : tuple of tuple of Symbol
@@ -94,8 +94,9 @@ class SymbolicModels:
         Every parameter symbol and its value in the robot, in the order of the ``p`` argument:
         geometry frame by frame (``gamma b alpha d theta r``), then the dynamic parameters frame by
         frame (``XX .. FS``), then ``G1 G2 G3``.
-    transforms, inverse_dynamics, inertia_matrix : SymbolicModel
-        ``0T_j`` for j = 0..NF, ``tau`` (n), ``A`` (n x n, both triangles written).
+    transforms, inverse_dynamics, inertia_matrix, gravity_torques : SymbolicModel
+        ``0T_j`` for j = 0..NF, ``tau`` (n), ``A`` (n x n, both triangles written), the gravity torques
+        ``Q(q)`` (n, the inverse dynamics at ``qd = qdd = 0``).
     """
 
     q: tuple[sympy.Symbol, ...]
@@ -105,6 +106,7 @@ class SymbolicModels:
     transforms: SymbolicModel
     inverse_dynamics: SymbolicModel
     inertia_matrix: SymbolicModel
+    gravity_torques: SymbolicModel
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -112,12 +114,13 @@ class SymbolicModels:
         return tuple(s.name for s in self.parameters)
 
     @property
-    def models(self) -> tuple[SymbolicModel, SymbolicModel, SymbolicModel]:
-        return self.transforms, self.inverse_dynamics, self.inertia_matrix
+    def models(self) -> tuple[SymbolicModel, ...]:
+        """The four models, in the order the exported files hold them."""
+        return self.transforms, self.inverse_dynamics, self.inertia_matrix, self.gravity_torques
 
 
-def _finish(name: str, arguments: tuple[str, ...], inputs: tuple[tuple[sympy.Symbol, ...], ...], eq: Equations, outputs: list[tuple[str, sympy.Expr]],
-            shape: tuple[int, ...]) -> SymbolicModel:
+def _finish(name: str, arguments: tuple[str, ...], inputs: tuple[tuple[sympy.Symbol, ...], ...], eq: Equations,
+            outputs: list[tuple[str, sympy.Expr]], shape: tuple[int, ...]) -> SymbolicModel:
     """Drop the unused intermediates, then name the products shared between entries (:func:`sympy.cse`)."""
     needed: set[sympy.Symbol] = set()
     for _, expr in outputs:
@@ -154,7 +157,7 @@ def _finish(name: str, arguments: tuple[str, ...], inputs: tuple[tuple[sympy.Sym
 
 
 def symbolic_models(robot: "MDHRobot") -> SymbolicModels:
-    """The transforms, inverse dynamic model and inertia matrix of a robot, symbolic (SymPy).
+    """The transforms, inverse dynamic model, inertia matrix and gravity torques of a robot, symbolic (SymPy).
 
     Parameters
     ----------
@@ -176,9 +179,12 @@ def symbolic_models(robot: "MDHRobot") -> SymbolicModels:
     t_eq, t_out = transforms_program(policy)
     d_eq, d_out = newton_euler_program(policy)
     a_eq, a_out = composite_program(policy)
+    g_eq, g_out = newton_euler_program(policy, at_rest=True)
     return SymbolicModels(
         q=policy.q, qd=policy.qd, qdd=policy.qdd, parameters=dict(policy.parameters),
         transforms=_finish("transforms", ("q", "p"), (policy.q, p), t_eq, t_out, (nf + 1, 4, 4)),
         inverse_dynamics=_finish("inverse_dynamics", ("q", "qd", "qdd", "p"),
                                  (policy.q, policy.qd, policy.qdd, p), d_eq, d_out, (n,)),
-        inertia_matrix=_finish("inertia_matrix", ("q", "p"), (policy.q, p), a_eq, a_out, (n, n)))
+        inertia_matrix=_finish("inertia_matrix", ("q", "p"), (policy.q, p), a_eq, a_out, (n, n)),
+        gravity_torques=_finish("gravity_torques", ("q", "p"), (policy.q, p), g_eq,
+                                [(f"Q{k + 1}", e) for k, (_, e) in enumerate(g_out)], (n,)))
