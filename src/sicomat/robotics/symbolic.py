@@ -134,7 +134,10 @@ def _finish(name: str, arguments: tuple[str, ...], inputs: tuple[tuple[sympy.Sym
     exprs = [e for _, e in kept] + [e for _, e in outputs]
     replacements, reduced = sympy.cse(exprs, symbols=sympy.numbered_symbols("x", cls=sympy.Symbol, start=1,
                                                                              real=True))
-    shared = dict(replacements)
+    # a shared -C1 or a bare symbol is no product worth a name: put it back in place
+    inline = {s: e for s, e in replacements if e.is_Atom or (-e).is_Atom}
+    shared = {s: e.xreplace(inline) for s, e in replacements if s not in inline}
+    reduced = [e.xreplace(inline) for e in reduced]
     placed: set[sympy.Symbol] = set()
     program: list[tuple[sympy.Symbol, sympy.Expr]] = []
 
