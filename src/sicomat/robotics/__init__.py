@@ -1,14 +1,23 @@
 """Robotics formalism (issue 13): multi-body machines described in modified Denavit–Hartenberg
-parameters (SYMORO's tables), their geometric, kinematic and dynamic models (numpy)."""
+parameters (SYMORO's tables), their geometric, kinematic and dynamic models (numpy), and the same
+models in SymPy with their code export (imported on first use: SymPy takes ~0.5 s to import)."""
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 from .base import BaseParameters, base_parameters
-from .codegen import symbolic_export
 from .dynamics import (direct_dynamics, inertia_matrix, inverse_dynamics, inverse_dynamics_batch, regressor,
                        regressor_batch)
 from .dynamics import inertia_matrix_batch
 from .geometry import jacobian, transform, transforms
-from .symbolic import SymbolicModel, SymbolicModels, symbolic_models
 from .table import FRAME_FIELDS, PARAMETER_FIELDS, MDHRobot
+
+if TYPE_CHECKING:
+    from .codegen import symbolic_export
+    from .symbolic import SymbolicModel, SymbolicModels, symbolic_models
+
+_LAZY = {"symbolic_models": "symbolic", "SymbolicModels": "symbolic", "SymbolicModel": "symbolic",
+         "symbolic_export": "codegen"}
 
 __all__ = [
     "MDHRobot",
@@ -31,3 +40,13 @@ __all__ = [
     "SymbolicModel",
     "symbolic_export",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        module = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
