@@ -278,3 +278,27 @@ def test_export_name_must_be_a_c_identifier():
 def test_the_robot_method_delegates():
     robot = planar_2r()
     assert robot.symbolic().inverse_dynamics.outputs == symbolic_models(robot).inverse_dynamics.outputs
+
+
+def test_a_larger_generic_tree_agrees():
+    """12 frames (two-digit names: ``C12``, ``FA11_3x``), generic angles and lengths everywhere, so every
+    constant is a symbol; prismatic joints and fixed frames drawn at random."""
+    rng = np.random.default_rng(5)
+    rows = []
+    for j in range(12):
+        sigma = int(rng.choice([0, 1, 2], p=[0.6, 0.3, 0.1])) if j else 0
+        row = {"ant": int(rng.integers(0, j + 1)), "sigma": sigma, **_physical_inertia(rng),
+               **{key: rng.uniform(-3, 3) for key in ("gamma", "alpha", "theta")},
+               **{key: rng.uniform(-0.5, 0.5) for key in ("b", "d", "r")}}
+        if sigma != 2:
+            row.update(_friction(rng))
+        rows.append(row)
+    robot = MDHRobot.from_table(rows, gravity=(0.3, -0.2, -9.81))
+    models = symbolic_models(robot)
+    p = list(models.parameters.values())
+    tau, inertia = models.inverse_dynamics.lambdify(), models.inertia_matrix.lambdify()
+    for q, qd, qdd in _states(robot, 3):
+        expected = robot.inverse_dynamics(q, qd, qdd)
+        np.testing.assert_allclose(tau(q, qd, qdd, p), expected, rtol=0, atol=REL * max(1.0, np.max(np.abs(expected))))
+        a = robot.inertia_matrix(q)
+        np.testing.assert_allclose(inertia(q, p), a, rtol=0, atol=REL * max(1.0, np.max(np.abs(a))))

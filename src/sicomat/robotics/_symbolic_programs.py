@@ -35,6 +35,7 @@ class Equations:
     def __init__(self) -> None:
         self.assignments: list[tuple[sympy.Symbol, sympy.Expr]] = []
         self._known: dict[sympy.Expr, sympy.Symbol] = {}
+        self._labels: set[str] = set()
 
     def name(self, expr: sympy.Expr, label: str) -> sympy.Expr:
         expr = sympy.sympify(expr)
@@ -44,6 +45,9 @@ class Equations:
             return self._known[expr]
         if -expr in self._known:
             return -self._known[-expr]
+        if label in self._labels:       # two values under one name would silently alias: a bug here
+            raise RuntimeError(f"internal error: the intermediate {label} is named twice")
+        self._labels.add(label)
         named = symbol(label)
         self.assignments.append((named, expr))
         self._known[expr] = named

@@ -175,6 +175,7 @@ def _c_source(models: SymbolicModels, header: list[str], name: str) -> str:
         out += ["", f"/* {_TITLE[model.name]}. */", _c_signature(model, name), "{"]
         inputs = _inputs(model)
         unused = [a for a in model.arguments if a not in {argument for argument, _, _ in inputs}]
+        unused += [] if model.outputs else [result]       # a robot with no joint has no torque
         out += [f"    (void){argument};  /* not needed by this robot's model */" for argument in unused]
         out += [f"    const double {symbol} = {argument}[{k}];" for argument, k, symbol in inputs]
         out += [f"    const double {symbol} = {ccode(expr, standard='C99')};" for symbol, expr in model.assignments]
