@@ -36,6 +36,7 @@ if TYPE_CHECKING:
 
 __all__ = ["SymbolicModel", "SymbolicModels", "symbolic_models"]
 
+
 @dataclass(frozen=True, eq=False)
 class SymbolicModel:
     """One model as a straight-line program: ``assignments`` in order, then ``outputs``.
@@ -71,8 +72,9 @@ class SymbolicModel:
         return [expr.xreplace(full) for _, expr in self.outputs]
 
     def lambdify(self) -> Callable[..., np.ndarray]:
-        """A numpy-free Python function of the arguments (sequences) returning the output array, made by
-        :func:`sympy.lambdify` with the intermediates as its common subexpressions."""
+        """A numeric function of the arguments (sequences, in the order of :attr:`arguments`) returning the
+        output array of :attr:`shape`, made by :func:`sympy.lambdify` (``math`` functions) with the
+        intermediates as its common subexpressions."""
         function = sympy.lambdify(self.inputs, [e for _, e in self.outputs], modules="math",
                                   cse=lambda exprs: (list(self.assignments), exprs))
         shape = self.shape
@@ -175,6 +177,17 @@ def symbolic_models(robot: "MDHRobot") -> SymbolicModels:
         Each model a straight-line program of named intermediates; evaluated at the robot's parameters
         they equal :meth:`MDHRobot.transforms`, :meth:`MDHRobot.inverse_dynamics` (gravity, ``IA``,
         ``FV``, ``FS sign(qd)`` with ``sign(0) = 0``) and :meth:`MDHRobot.inertia_matrix`.
+
+    Examples
+    --------
+    A 2 kg slide on a vertical axis: ``tau1 = M1 (qdd1 - G3)``, through two named intermediates.
+
+    >>> from sicomat.robotics import MDHRobot
+    >>> models = symbolic_models(MDHRobot.from_table([{"ant": 0, "sigma": 1, "M": 2.0}]))
+    >>> models.inverse_dynamics.assignments, models.inverse_dynamics.outputs
+    (((VP1z, -G3 + qdd1), (F1z, M1*VP1z)), (('tau1', F1z),))
+    >>> models.parameters
+    {M1: 2.0, G3: -9.81}
     """
     policy = Policy(robot)
     nf, n = robot.n_frames, robot.n_joints
