@@ -38,6 +38,8 @@ class Equations:
         self._labels: set[str] = set()
 
     def name(self, expr: sympy.Expr, label: str) -> sympy.Expr:
+        """``expr`` itself if it is a number or a symbol (or its negation), else the symbol ``label``
+        assigned to it — or the symbol an equal expression (or its negation) already has."""
         expr = sympy.sympify(expr)
         if expr.is_Atom or (-expr).is_Atom:
             return expr
@@ -54,9 +56,11 @@ class Equations:
         return named
 
     def vector(self, v: sympy.Matrix, label: str) -> sympy.Matrix:
+        """A 3-vector with its entries named ``<label>x``, ``<label>y``, ``<label>z``."""
         return sympy.Matrix([self.name(v[k], f"{label}{_AXES[k]}") for k in range(3)])
 
     def matrix(self, m: sympy.Matrix, label: str) -> sympy.Matrix:
+        """A 3x3 matrix with its entries named ``<label>xx``, ``<label>xy``..."""
         return sympy.Matrix(3, 3, lambda r, c: self.name(m[r, c], f"{label}{_AXES[r]}{_AXES[c]}"))
 
 
