@@ -15,6 +15,7 @@ from ..errors import ModelError
 
 if typing.TYPE_CHECKING:
     from .base import BaseParameters
+    from .symbolic import SymbolicModels
 
 __all__ = ["MDHRobot", "FRAME_FIELDS", "PARAMETER_FIELDS"]
 
@@ -218,3 +219,9 @@ class MDHRobot:
         for the options (``parameters``, ``stiffness``, ``samples``, ``seed``, ``tol``)."""
         from .base import base_parameters
         return base_parameters(self, **options)
+
+    def symbolic(self) -> "SymbolicModels":
+        """The models in SymPy; see :func:`sicomat.robotics.symbolic.symbolic_models`."""
+        from .symbolic import symbolic_models
+        return symbolic_models(self)
+
