@@ -277,3 +277,49 @@ def test_robot_command_refuses_what_it_cannot_do(tmp_path):
     assert two.exit_code == 2 and "give one of" in two.output
     no_q = run("robot", str(XY), "--inverse-dynamics")
     assert no_q.exit_code == 2 and "--q" in no_q.output
+
+
+# --------------------------------------------------------------------------- coupled servo loops
+def test_coupled_xy_servo_loops_show_the_coupling_where_the_closed_form_puts_it():
+    """X's move reaches Y's loop only through the Y slide's mass offset MX5 (A34 = A35 = MX5 at q3 = 0 in the
+    notes' closed form; A14 = A15 = -M5 sin q3 = 0): with MX5 = 0 the linear coupled run leaves Y at rest to
+    rounding (1e-12 of X's error); with the example's MX5 Y sees an error orders of magnitude above rounding;
+    X's own error barely changes from its decoupled model."""
+    from sicomat import simulate
+    from sicomat.motion.setpoints import step_profile, trapezoid_profile
+    from sicomat.servo.coupled import robot_coupled_loop
+    from sicomat.servo.loop import build_servo_loop
+    from sicomat.simulation.coupled import simulate_coupled
+
+    machine = load_model(XY)
+    profiles = {"X": trapezoid_profile(0.02, 0.3, 3.0), "Y": step_profile(0.0)}
+    run = simulate_coupled(robot_coupled_loop(machine), profiles, 0.3, nonlinear=False)
+    error_x = np.abs(run["X"]["following_error"]).max()
+    error_y = np.abs(run["Y"]["following_error"]).max()
+    assert 1e-5 * error_x < error_y < 0.1 * error_x     # measured 6.6e-4: far above rounding, below X's
+    alone = simulate(build_servo_loop(machine, "X"), profiles["X"], 0.3, nonlinear=False)
+    assert abs(np.abs(alone["following_error"]).max() - error_x) < 0.01 * error_x
+
+    rows = [f.model_copy(update={"MX": 0.0}) if f.name == "Y_screw" else f for f in machine.robot.frames]
+    centred = machine.model_copy(update={"robot": machine.robot.model_copy(update={"frames": rows})})
+    run0 = simulate_coupled(robot_coupled_loop(centred), profiles, 0.3, nonlinear=False)
+    assert np.abs(run0["Y"]["following_error"]).max() < 1e-12 * error_x
+
+
+def test_export_symbolic_writes_four_files_that_agree_with_the_numeric_model(tmp_path):
+    folder = tmp_path / "models"
+    result = run("robot", str(XY), "--export-symbolic", str(folder), "--json")
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    assert sorted(Path(p).name for p in payload["written"]) == sorted(
+        f"xy_elastic_models.{ext}" for ext in ("py", "c", "h", "txt"))
+    namespace: dict = {}
+    exec(compile((folder / "xy_elastic_models.py").read_text(), "xy_elastic_models.py", "exec"), namespace)
+    q, qd, qdd = [0.1, 1e-5, 0.01, 0.15, -2e-5], [0.2, 0.0, 0.05, 0.1, 0.0], [1.0, 0.0, 0.0, -2.0, 0.0]
+    tau = robot_model(load_model(XY).robot).inverse_dynamics(q, qd, qdd)
+    np.testing.assert_allclose(namespace["inverse_dynamics"](q, qd, qdd), tau, rtol=0, atol=REL * np.abs(tau).max())
+    # a file where the folder should be: refused before anything is written
+    blocked = tmp_path / "file"
+    blocked.write_text("x")
+    refused = run("robot", str(XY), "--export-symbolic", str(blocked))
+    assert refused.exit_code == 2 and "Traceback" not in refused.output and blocked.read_text() == "x"

@@ -24,10 +24,11 @@ from .loop import (ServoLoop, SetpointTable, _assemble, _Lowering, _Prefixed, _S
                    friction_links, loop_reads)
 
 if TYPE_CHECKING:  # pragma: no cover
+    from ..description.machine import Machine
     from ..lti.plant import Plant
     from .program import HybridProgram
 
-__all__ = ["CoupledLoop", "coupled_plant", "coupled_program", "axis_view", "AXIS_OUTPUTS"]
+__all__ = ["CoupledLoop", "coupled_plant", "coupled_program", "axis_view", "AXIS_OUTPUTS", "robot_coupled_loop"]
 
 AXIS_OUTPUTS = ("tool.position", "tool.velocity", "actuator.velocity", "drive.current", "drive.effort")
 """The continuous outputs each axis has in the coupled plant, as ``"<axis>.<output>"``."""
@@ -225,3 +226,30 @@ def axis_view(coupled: CoupledLoop, axis: str, names: Sequence[str]) -> dict[str
         elif name.startswith(f"{axis}."):
             view[name[len(axis) + 1:]] = name
     return view
+
+
+def robot_coupled_loop(machine: "Machine") -> CoupledLoop:
+    """The servo loops of every motorised joint of a ``[robot]`` machine on its coupled linear model: the
+    robot linearised at its configuration with every joint free (gravity compensated, as each axis's own
+    model), each axis's loop built as for a single axis (its gains, rigid mass and sensor conversions
+    those of its decoupled model, the other motors locked), its tool the sensor that reads its coordinate.
+    Every motorised joint needs a drive and a controller.
+
+    Raises
+    ------
+    ModelError
+        The machine has no ``[robot]`` section, an axis has no drive or controller, or the loops do not
+        fit together (:class:`CoupledLoop`).
+    """
+    from ..robotics.lowering import robot_mechanics
+    from .loop import build_servo_loop
+
+    robot = machine.robot
+    if robot is None:
+        raise ModelError("a coupled loop of a machine needs its [robot] section (its motorised joints are the "
+                         "axes)", path="robot")
+    mechanics = robot_mechanics(robot, gravity=False)
+    loops = tuple(build_servo_loop(machine, axis) for axis in machine.axes)
+    tools = {axis: np.array(mechanics.sensor(machine.axes[axis].tool or robot.tool_sensor(axis)).vector)
+             for axis in machine.axes}
+    return CoupledLoop(mechanics, loops, tools)

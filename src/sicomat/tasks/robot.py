@@ -117,7 +117,7 @@ def export_symbolic_models(machine: "Machine", directory: "str | os.PathLike[str
     from ..errors import OutputError
     from ..io.atomic import atomic_write, check_output
     from ..robotics.lowering import robot_model
-    from ..robotics.symbolic import symbolic_export
+    from ..robotics.codegen import symbolic_export
 
     stem = re.sub(r"\W", "_", name) or "robot"
     stem = stem if not stem[0].isdigit() else f"robot_{stem}"
