@@ -79,3 +79,16 @@ def elastic_cross_slide_frames() -> list[dict]:
             dict(ant=3, sigma=1, mu=1, alpha=-PI / 2, IA=20.0),
             dict(ant=4, sigma=1, eta=1, k=1.5e8, M=60.0, MX=3.0, XX=8.0, YY=9.0, ZZ=7.0),
             dict(ant=5, sigma=2, alpha=-PI / 2, r=0.2)]
+
+
+def physical_inertia(rng: np.random.Generator) -> dict[str, float]:
+    """A real body about the frame origin: a box of random half-sizes and pose, its inertia about the frame
+    origin by the parallel-axis theorem written out here, independently of the code under test."""
+    mass = rng.uniform(0.5, 3.0)
+    a, b, c = rng.uniform(0.05, 0.4, 3) ** 2
+    axes, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    j_com = axes @ np.diag(mass / 3.0 * np.array([b + c, a + c, a + b])) @ axes.T
+    com = rng.uniform(-0.3, 0.3, 3)
+    j_o = j_com + mass * (com @ com * np.eye(3) - np.outer(com, com))
+    return {"XX": j_o[0, 0], "XY": j_o[0, 1], "XZ": j_o[0, 2], "YY": j_o[1, 1], "YZ": j_o[1, 2],
+            "ZZ": j_o[2, 2], "MX": mass * com[0], "MY": mass * com[1], "MZ": mass * com[2], "M": mass}

@@ -28,7 +28,7 @@ import pytest
 from sicomat.robotics import BaseParameters, MDHRobot, base_parameters, inverse_dynamics_batch, regressor_batch
 from sicomat.robotics.table import PARAMETER_FIELDS
 
-from robotics_models import elastic_cross_slide_frames
+from robotics_models import elastic_cross_slide_frames, physical_inertia
 
 PI = math.pi
 COEF = 1e-9
@@ -37,16 +37,7 @@ D3, RL4 = 0.45, 0.35      # the notes use 0.45 for both; different values catch 
 
 
 # --------------------------------------------------------------------------- robots
-def _physical(rng: np.random.Generator) -> dict[str, float]:
-    """A real body about the frame origin: a box of random half-sizes and pose, parallel-axis theorem."""
-    mass = rng.uniform(0.5, 3.0)
-    a, b, c = rng.uniform(0.05, 0.4, 3) ** 2
-    axes, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    j_com = axes @ np.diag(mass / 3.0 * np.array([b + c, a + c, a + b])) @ axes.T
-    com = rng.uniform(-0.3, 0.3, 3)
-    j_o = j_com + mass * (com @ com * np.eye(3) - np.outer(com, com))
-    return {"XX": j_o[0, 0], "XY": j_o[0, 1], "XZ": j_o[0, 2], "YY": j_o[1, 1], "YZ": j_o[1, 2],
-            "ZZ": j_o[2, 2], "MX": mass * com[0], "MY": mass * com[1], "MZ": mass * com[2], "M": mass}
+_physical = physical_inertia
 
 
 def _six_axis(alpha, d, r, seed: int = 0) -> MDHRobot:

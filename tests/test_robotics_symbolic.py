@@ -35,6 +35,7 @@ import pytest
 import sympy
 
 from sicomat.robotics import PARAMETER_FIELDS, MDHRobot, symbolic_export, symbolic_models
+from robotics_models import physical_inertia
 
 PI = math.pi
 REL = 1e-10
@@ -42,17 +43,7 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 
 
 # --------------------------------------------------------------------------- robots
-def _physical_inertia(rng: np.random.Generator) -> dict[str, float]:
-    """A real body about the frame origin: a box of random half-sizes, random pose (as in
-    ``test_robotics_core.py``), parallel-axis theorem written out here."""
-    mass = rng.uniform(0.5, 3.0)
-    a, b, c = rng.uniform(0.05, 0.4, 3) ** 2
-    axes, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    j_com = axes @ np.diag(mass / 3.0 * np.array([b + c, a + c, a + b])) @ axes.T
-    com = rng.uniform(-0.3, 0.3, 3)
-    j_o = j_com + mass * (com @ com * np.eye(3) - np.outer(com, com))
-    return {"XX": j_o[0, 0], "XY": j_o[0, 1], "XZ": j_o[0, 2], "YY": j_o[1, 1], "YZ": j_o[1, 2],
-            "ZZ": j_o[2, 2], "MX": mass * com[0], "MY": mass * com[1], "MZ": mass * com[2], "M": mass}
+_physical_inertia = physical_inertia
 
 
 def _friction(rng: np.random.Generator) -> dict[str, float]:
