@@ -71,6 +71,7 @@ def gravity_stiffness(robot: MDHRobot, q: np.ndarray) -> np.ndarray:
     n = robot.n_joints
     if not np.any(robot.gravity):
         return np.zeros((n, n))
+
     def derivative(h: float) -> np.ndarray:
         states = np.vstack([q + h * e for e in np.eye(n)] + [q - h * e for e in np.eye(n)])
         tau = robot.inverse_dynamics_batch(states, np.zeros_like(states), np.zeros_like(states))
@@ -81,8 +82,9 @@ def gravity_stiffness(robot: MDHRobot, q: np.ndarray) -> np.ndarray:
     return 0.5 * (jac + jac.T)
 
 
-def linearize(robot: MDHRobot, q: "Sequence[float] | np.ndarray") -> Linearization:
-    """M, D, K of ``robot`` at rest at ``q``; see the module's docstring.
+def linearize(robot: MDHRobot, q: "Sequence[float] | np.ndarray", *, gravity: bool = True) -> Linearization:
+    """M, D, K of ``robot`` at rest at ``q``; see the module's docstring. ``gravity=False``: without the
+    gravity stiffness (gravity compensated, :func:`robot_mechanics`), which is then not computed.
 
     Examples
     --------
@@ -99,7 +101,7 @@ def linearize(robot: MDHRobot, q: "Sequence[float] | np.ndarray") -> Linearizati
     damping = np.diag(robot.chi[rows, 11])
     elastic = robot.eta[rows] == 1
     stiffness = np.diag(np.where(elastic, robot.k[rows], 0.0))
-    kg = gravity_stiffness(robot, q0)
+    kg = gravity_stiffness(robot, q0) if gravity else np.zeros_like(stiffness)
     return Linearization(q=q0, mass=mass, damping=damping, stiffness=stiffness + kg, gravity_stiffness=kg)
 
 
@@ -151,11 +153,9 @@ def robot_mechanics(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" 
     keep = [names.index(name) for name in keep_names]
     if not keep:
         raise ModelError("no degree of freedom is left free", path="robot.frames")
-    lin = linearize(robot, q0)
+    lin = linearize(robot, q0, gravity=gravity)
     sub = np.ix_(keep, keep)
     M, D, K, Kg = lin.mass[sub], lin.damping[sub], lin.stiffness[sub], lin.gravity_stiffness[sub]
-    if not gravity:
-        K, Kg = K - Kg, np.zeros_like(Kg)
     n = len(keep)
     rows = robot.joint_frames[keep]
     kinds = ["translational" if robot.sigma[row] == PRISMATIC else "rotational" for row in rows]
