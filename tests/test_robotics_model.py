@@ -228,6 +228,10 @@ def test_bad_tables_name_file_row_and_field(tmp_path, row, field, words):
      "robot.frames.1.name", "already frame 1"),
     ('[robot]\nframes = [{ ant = 0, sigma = 1, mu = 1 }]\n[robot.sensors.s]\njoints = ["nope"]\n',
      "robot.sensors.s.joints.0", "unknown joint"),
+    ('[robot]\nframes = [{ ant = 0, sigma = 1, mu = 1 }]\n[robot.sensors.s]\njoints = ["q1"]\n'
+     'resolution = "1 um"\ncounts_per_revolution = 1000\n', "robot.sensors.s.counts_per_revolution", "not both"),
+    ('[robot]\nlinks = 1\nframes = [{ ant = 0, sigma = 0, mu = 1 }, { ant = 1, sigma = 0 }, { ant = 1, sigma = 0 }]\n',
+     "robot.frames.2.sigma", "closing frame is fixed"),
 ])
 def test_bad_robot_sections(tmp_path, text, where, words):
     model = tmp_path / "bad.toml"

@@ -17,7 +17,7 @@ from .units import UNITS, parse_quantity
 
 __all__ = [
     "GROUND", "Body", "Coupling", "Friction", "Actuator", "Sensor",
-    "LumpedSpec", "resolve_stretch", "geared_kind",
+    "LumpedSpec", "resolve_stretch", "geared_kind", "quantization_step",
 ]
 
 GROUND = "ground"
@@ -132,17 +132,24 @@ class Sensor(Spec):
     def _one_resolution(self) -> "Sensor":
         if self.ratio == 0:
             raise fail("the ratio must be non-zero", "ratio", self.ratio)
-        if self.resolution is not None and self.counts_per_revolution is not None:
-            raise fail("give either 'resolution' or 'counts_per_revolution', not both", "counts_per_revolution",
-                       self.counts_per_revolution)
+        quantization_step(self.resolution, self.counts_per_revolution)
         return self
 
     @property
     def step(self) -> float | None:
         """Quantization step in SI units (m or rad), or ``None``."""
-        if self.counts_per_revolution is not None:
-            return 2.0 * 3.141592653589793 / self.counts_per_revolution
-        return self.resolution
+        return quantization_step(self.resolution, self.counts_per_revolution)
+
+
+def quantization_step(resolution: float | None, counts_per_revolution: int | None) -> float | None:
+    """A position sensor's quantization step in SI units (m or rad) from its ``resolution`` or its
+    ``counts_per_revolution`` (``None`` without either); giving both is a located validation error."""
+    if resolution is not None and counts_per_revolution is not None:
+        raise fail("give either 'resolution' or 'counts_per_revolution', not both", "counts_per_revolution",
+                   counts_per_revolution)
+    if counts_per_revolution is not None:
+        return 2.0 * 3.141592653589793 / counts_per_revolution
+    return resolution
 
 
 # --------------------------------------------------------------------------- mechanics descriptions

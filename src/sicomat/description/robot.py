@@ -20,14 +20,12 @@ from pydantic import Field, model_validator
 
 from ..errors import ModelError
 from .base import Name, Spec, fail
+from .mechanics import quantization_step
 from .robot_table import (FIELD_UNITS, FIXED, FRAME_FIELDS, PRISMATIC, check_frame, check_gravity, check_links,
                           check_loops, field_unit)
 from .units import UNITS, parse_quantity
 
 __all__ = ["RobotSpec", "RobotSensor", "Frame"]
-
-_FRAME_DEFAULTS: dict[str, Any] = {name: 0.0 for name in FRAME_FIELDS if name not in ("ant", "sigma", "mu", "eta")}
-
 
 class Frame(Spec):
     """One row of the MDH table, in SI units (see :mod:`.robot_table` for the rules)."""
@@ -72,12 +70,15 @@ class RobotSensor(Spec):
     resolution: float | None = Field(default=None, gt=0)
     counts_per_revolution: int | None = Field(default=None, gt=0)
 
+    @model_validator(mode="after")
+    def _one_resolution(self) -> "RobotSensor":
+        quantization_step(self.resolution, self.counts_per_revolution)
+        return self
+
     @property
     def step(self) -> float | None:
         """Quantization step in SI units (m or rad), or ``None``."""
-        if self.counts_per_revolution is not None:
-            return 2.0 * 3.141592653589793 / self.counts_per_revolution
-        return self.resolution
+        return quantization_step(self.resolution, self.counts_per_revolution)
 
 
 class RobotSpec(Spec):
@@ -131,16 +132,13 @@ class RobotSpec(Spec):
             try:
                 check_frame(row, frame.table_row())
             except ModelError as exc:
-                field = (exc.path or "").split("].", 1)[-1]
-                raise fail(exc.message, f"frames.{row}.{field}", exc.value) from None
+                raise fail(exc.message, _table_path(exc), exc.value) from None
         try:
             nl = check_links(self.links, len(self.frames))
             if nl is not None:
                 check_loops({key: [getattr(f, key) for f in self.frames] for key in FRAME_FIELDS}, nl)
         except ModelError as exc:
-            where = "links" if exc.path == "links" else f"frames.{(exc.path or '').split('].', 1)[0].split('[')[-1]}." \
-                f"{(exc.path or '').split('].', 1)[-1]}"
-            raise fail(exc.message, where, exc.value) from None
+            raise fail(exc.message, _table_path(exc), exc.value) from None
         names = self.joint_names
         seen: dict[str, int] = {}
         for row, frame in enumerate(self.frames):
@@ -225,6 +223,12 @@ class RobotSpec(Spec):
     def tool_sensor(self, axis: str) -> str:
         """The sensor whose reading is axis ``axis``'s coordinate by default: its load side, else itself."""
         return f"{axis}_load" if self.followers(axis) else axis
+
+
+def _table_path(exc: ModelError) -> str:
+    """The table rules' location ``frames[ROW].FIELD`` (or ``links``) as a model-file key path below
+    ``robot``: ``frames.ROW.FIELD``."""
+    return (exc.path or "").replace("[", ".").replace("]", "")
 
 
 def _quantity(value: Any, unit: str, where: str) -> Any:
