@@ -17,6 +17,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
     from ..progress import ProgressCallback
     from ..motion.setpoints import SetpointProfile
+    from ..servo.program import HybridProgram
+    from .kernel import KernelResult
 
 __all__ = ["simulate", "simulate_batch", "BatchMetrics", "loop_program", "loop_programs",
            "TimeSeries", "StepMetrics", "step_metrics", "StepFigures", "step_figures"]
@@ -60,6 +62,22 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dura
     t_pos = np.arange(n_pos) * Np * h
     table = SetpointTable(*profile.evaluate(t_pos))
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
+
+
+def timed_run(program: "HybridProgram", n_steps: int, task: str,
+              progress: "ProgressCallback | None") -> "tuple[KernelResult, float]":
+    """Run ``program`` for ``n_steps`` after loading (or compiling) the kernel on a two-step run, so that
+    the wall time returned is the simulation's own; ``progress`` is told the phases."""
+    from .kernel import run
+
+    notify(progress, "loading the simulation kernel (compiled on first use)", 0, None)
+    run(program, 2)
+    notify(progress, task, 0, n_steps)
+    start = _time.perf_counter()
+    result = run(program, n_steps)
+    wall = _time.perf_counter() - start
+    notify(progress, task, n_steps, n_steps)
+    return result, wall
 
 
 def run_steps(loops: Sequence["ServoLoop"], duration: float) -> int:
@@ -141,17 +159,8 @@ def simulate(loop: "ServoLoop", profile: "SetpointProfile", duration: float, *, 
     ResourceError
         The run's arrays would exceed the memory limit (:mod:`sicomat.budget`); estimated first.
     """
-    from .kernel import run
-
     program, n_steps = loop_program(loop, profile, duration, nonlinear=nonlinear)
-    notify(progress, "loading the simulation kernel (compiled on first use)", 0, None)
-    run(program, 2)  # loads (or compiles) the kernel, so that only the simulation itself is timed
-    task = f"simulating axis {loop.axis}: {n_steps} steps"
-    notify(progress, task, 0, n_steps)
-    start = _time.perf_counter()
-    result = run(program, n_steps)
-    wall = _time.perf_counter() - start
-    notify(progress, task, n_steps, n_steps)
+    result, wall = timed_run(program, n_steps, f"simulating axis {loop.axis}: {n_steps} steps", progress)
     signals = named_signals(loop, program, result.records, profile.evaluate(result.time)[0], result.states)
     return axis_series(loop, profile, result.time, signals, wall=wall, nonlinear=nonlinear)
 

@@ -6,15 +6,13 @@ coupled mechanics' own signals.
 
 from __future__ import annotations
 
-import time as _time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
 from ..errors import ModelError
-from ..progress import notify
-from . import _require_memory, axis_series, named_signals, run_steps
+from . import _require_memory, axis_series, named_signals, run_steps, timed_run
 from .timeseries import TimeSeries
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -111,17 +109,10 @@ def simulate_coupled(coupled: "CoupledLoop", profiles: Mapping[str, "SetpointPro
         The run's arrays would exceed the memory limit.
     """
     from ..servo.coupled import axis_view, coupled_plant
-    from .kernel import run
 
     program, n_steps = coupled_run_program(coupled, profiles, duration, nonlinear=nonlinear)
-    notify(progress, "loading the simulation kernel (compiled on first use)", 0, None)
-    run(program, 2)
-    task = f"simulating axes {', '.join(coupled.axes)}: {n_steps} steps"
-    notify(progress, task, 0, n_steps)
-    start = _time.perf_counter()
-    result = run(program, n_steps)
-    wall = _time.perf_counter() - start
-    notify(progress, task, n_steps, n_steps)
+    result, wall = timed_run(program, n_steps, f"simulating axes {', '.join(coupled.axes)}: {n_steps} steps",
+                             progress)
     plant = coupled_plant(coupled)
     values = result.states @ plant.C.T
     outputs = {name: values[:, i] for i, name in enumerate(plant.outputs)}
