@@ -537,6 +537,90 @@ def _current_limit(w, i_peak, u_max, R, ke, wl):
     return lo, hi
 
 
+@njit(cache=True, error_model="numpy", inline='always')
+def _run_ops(op_code, op_period, op_ip, op_fp, idx, fdata, table, slots, xb, tb, delay_buf, count, wait):
+    """Step (2) of a base step: the ops due now, in list order (``wait[o]``: steps until op o is due;
+    ``count[o]``: executions of a Setpoint, ring position of a Delay). Shared by :func:`_simulate` and
+    the nonlinear robot engine (:mod:`sicomat.simulation.nonlinear`)."""
+    n_ops = op_code.shape[0]
+    n_cols = table.shape[0]
+    last_col = table.shape[1] - 1
+    for o in range(n_ops):
+        if wait[o] > 0:
+            wait[o] -= 1
+            continue
+        wait[o] = op_period[o] - 1
+        code = op_code[o]
+        if code == _LIN_OUT or code == _LIN_UPD:
+            # rows of y = C xb + D u or of xb+ = A xb + B u (all before any is written)
+            n_rows, p = op_ip[o, 0], op_ip[o, 1]
+            for r in range(n_rows):
+                f, ns, ni = idx[_u(p)], idx[_u(p + 1)], idx[_u(p + 2)]
+                p += 3
+                s = 0.0
+                for q in range(ns):
+                    s += fdata[_u(f + q)] * xb[_u(idx[_u(p + q)])]
+                for q in range(ns, ns + ni):
+                    s += fdata[_u(f + q)] * slots[_u(idx[_u(p + q)])]
+                tb[r] = s
+                p += ns + ni
+            if code == _LIN_OUT:
+                oo = op_ip[o, 2]
+                for r in range(n_rows):
+                    slots[_u(idx[_u(oo + r)])] = tb[r]
+            else:
+                xo = op_ip[o, 2]
+                for r in range(n_rows):
+                    xb[_u(xo + r)] = tb[r]
+        elif code == _SUM:
+            n, io, wo = op_ip[o, 0], op_ip[o, 1], op_ip[o, 3]
+            s = op_fp[o, 0]
+            for i in range(n):
+                s += fdata[_u(wo + i)] * slots[_u(idx[_u(io + i)])]
+            slots[_u(op_ip[o, 2])] = s
+        elif code == _SAT:
+            v = slots[_u(op_ip[o, 0])]
+            lo = slots[_u(op_ip[o, 2])] if op_ip[o, 2] >= 0 else op_fp[o, 0]
+            hi = slots[_u(op_ip[o, 3])] if op_ip[o, 3] >= 0 else op_fp[o, 1]
+            if v < lo:
+                v = lo
+            elif v > hi:
+                v = hi
+            slots[_u(op_ip[o, 1])] = v
+        elif code == _QUANT:
+            q = op_fp[o, 0]
+            v = slots[_u(op_ip[o, 0])] / q
+            slots[_u(op_ip[o, 1])] = q * (np.floor(v) if op_ip[o, 2] == 1 else np.rint(v))
+        elif code == _DELAY:
+            n = op_ip[o, 2]
+            v = slots[_u(op_ip[o, 0])]
+            if n == 0:
+                slots[_u(op_ip[o, 1])] = v
+            else:
+                p = _u(op_ip[o, 3] + count[o])      # ring position
+                old = delay_buf[p]
+                delay_buf[p] = v
+                slots[_u(op_ip[o, 1])] = old
+                count[o] = count[o] + 1 if count[o] + 1 < n else 0
+        elif code == _CURLIM:
+            lo, hi = _current_limit(slots[_u(op_ip[o, 0])], op_fp[o, 0], op_fp[o, 1],
+                                    op_fp[o, 2], op_fp[o, 3], op_fp[o, 4])
+            slots[_u(op_ip[o, 1])] = lo
+            slots[_u(op_ip[o, 2])] = hi
+        elif code == _CLAMP:
+            e = slots[_u(op_ip[o, 0])]
+            us = slots[_u(op_ip[o, 1])]
+            if us != slots[_u(op_ip[o, 2])] and e * us > 0.0:
+                slots[_u(op_ip[o, 3])] = 0.0
+            else:
+                slots[_u(op_ip[o, 3])] = e
+        elif code == _SETPOINT:
+            col = op_ip[o, 0]
+            j = count[o] if count[o] < last_col else last_col
+            slots[_u(op_ip[o, 1])] = table[_u(col), _u(j)] if col < n_cols else 0.0
+            count[o] += 1
+
+
 @njit(cache=True, error_model="numpy")
 def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
               op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, table, n_delay,
@@ -560,8 +644,6 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     rec_all = n_rec == n_slots      # every slot recorded in order: rows are copies of the slots
     for i in range(n_rec):
         rec_all = rec_all and rec_slots[i] == i
-    n_cols = table.shape[0]
-    last_col = table.shape[1] - 1
     n_fr = fr_slots.shape[0]
 
     slots = np.zeros(n_slots)
@@ -636,81 +718,8 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                 if fr_slots[j] >= 0:
                     slots[_u(fr_slots[j])] = hold[j] if stuck[j] else z[nx + nu + j]
 
-        # (2) the ops due at k, in list order (wait[o]: steps until op o is due)
-        for o in range(n_ops):
-            if wait[o] > 0:
-                wait[o] -= 1
-                continue
-            wait[o] = op_period[o] - 1
-            code = op_code[o]
-            if code == _LIN_OUT or code == _LIN_UPD:
-                # rows of y = C xb + D u or of xb+ = A xb + B u (all before any is written)
-                n_rows, p = op_ip[o, 0], op_ip[o, 1]
-                for r in range(n_rows):
-                    f, ns, ni = idx[_u(p)], idx[_u(p + 1)], idx[_u(p + 2)]
-                    p += 3
-                    s = 0.0
-                    for q in range(ns):
-                        s += fdata[_u(f + q)] * xb[_u(idx[_u(p + q)])]
-                    for q in range(ns, ns + ni):
-                        s += fdata[_u(f + q)] * slots[_u(idx[_u(p + q)])]
-                    tb[r] = s
-                    p += ns + ni
-                if code == _LIN_OUT:
-                    oo = op_ip[o, 2]
-                    for r in range(n_rows):
-                        slots[_u(idx[_u(oo + r)])] = tb[r]
-                else:
-                    xo = op_ip[o, 2]
-                    for r in range(n_rows):
-                        xb[_u(xo + r)] = tb[r]
-            elif code == _SUM:
-                n, io, wo = op_ip[o, 0], op_ip[o, 1], op_ip[o, 3]
-                s = op_fp[o, 0]
-                for i in range(n):
-                    s += fdata[_u(wo + i)] * slots[_u(idx[_u(io + i)])]
-                slots[_u(op_ip[o, 2])] = s
-            elif code == _SAT:
-                v = slots[_u(op_ip[o, 0])]
-                lo = slots[_u(op_ip[o, 2])] if op_ip[o, 2] >= 0 else op_fp[o, 0]
-                hi = slots[_u(op_ip[o, 3])] if op_ip[o, 3] >= 0 else op_fp[o, 1]
-                if v < lo:
-                    v = lo
-                elif v > hi:
-                    v = hi
-                slots[_u(op_ip[o, 1])] = v
-            elif code == _QUANT:
-                q = op_fp[o, 0]
-                v = slots[_u(op_ip[o, 0])] / q
-                slots[_u(op_ip[o, 1])] = q * (np.floor(v) if op_ip[o, 2] == 1 else np.rint(v))
-            elif code == _DELAY:
-                n = op_ip[o, 2]
-                v = slots[_u(op_ip[o, 0])]
-                if n == 0:
-                    slots[_u(op_ip[o, 1])] = v
-                else:
-                    p = _u(op_ip[o, 3] + count[o])      # ring position
-                    old = delay_buf[p]
-                    delay_buf[p] = v
-                    slots[_u(op_ip[o, 1])] = old
-                    count[o] = count[o] + 1 if count[o] + 1 < n else 0
-            elif code == _CURLIM:
-                lo, hi = _current_limit(slots[_u(op_ip[o, 0])], op_fp[o, 0], op_fp[o, 1],
-                                        op_fp[o, 2], op_fp[o, 3], op_fp[o, 4])
-                slots[_u(op_ip[o, 1])] = lo
-                slots[_u(op_ip[o, 2])] = hi
-            elif code == _CLAMP:
-                e = slots[_u(op_ip[o, 0])]
-                us = slots[_u(op_ip[o, 1])]
-                if us != slots[_u(op_ip[o, 2])] and e * us > 0.0:
-                    slots[_u(op_ip[o, 3])] = 0.0
-                else:
-                    slots[_u(op_ip[o, 3])] = e
-            elif code == _SETPOINT:
-                col = op_ip[o, 0]
-                j = count[o] if count[o] < last_col else last_col
-                slots[_u(op_ip[o, 1])] = table[_u(col), _u(j)] if col < n_cols else 0.0
-                count[o] += 1
+        # (2) the ops due at k, in list order
+        _run_ops(op_code, op_period, op_ip, op_fp, idx, fdata, table, slots, xb, tb, delay_buf, count, wait)
 
         # (3) latch the held input; a stuck link may break away at once
         for i in range(nu):
