@@ -96,6 +96,9 @@ class RobotSpec(Spec):
     links: int | None = None
     """NL (SYMORO's name) for a machine with closed loops: frames after NL are the cut joints and their
     closing frames (``docs/robotics.md``, "Closed loops"); none for a tree."""
+    tool: Name | None = None
+    """The frame (by name) whose origin is the tool point, for path following on the coupled model
+    (``sicomat circle``); default: the last frame of the tree (frame NL)."""
 
     @model_validator(mode="before")
     @classmethod
@@ -161,6 +164,9 @@ class RobotSpec(Spec):
             if len(kinds) > 1:
                 raise fail("a sensor adds joint variables of one kind: these mix revolute and prismatic joints",
                            f"sensors.{sensor_name}.joints", sensor.joints)
+        if self.tool is not None and self.tool not in seen:
+            raise fail("unknown frame {value}; the tool point is the origin of a named frame: {known}", "tool",
+                       self.tool, known=", ".join(seen))
         if self.configuration is not None and len(self.configuration) != len(names):
             raise fail(f"expected {len(names)} joint values (every joint in frame order: {', '.join(names)})",
                        "configuration", self.configuration)
@@ -219,6 +225,13 @@ class RobotSpec(Spec):
     def all_sensors(self) -> dict[str, RobotSensor]:
         """The default sensors, then the section's own."""
         return {**self.default_sensors(), **self.sensors}
+
+    @property
+    def tool_frame(self) -> int:
+        """The frame number (1..NF) of the tool point: the frame named by ``tool``, else the tree's last."""
+        if self.tool is not None:
+            return next(row for row in range(len(self.frames)) if self.frame_name(row) == self.tool) + 1
+        return self.links if self.links is not None else len(self.frames)
 
     def tool_sensor(self, axis: str) -> str:
         """The sensor whose reading is axis ``axis``'s coordinate by default: its load side, else itself."""

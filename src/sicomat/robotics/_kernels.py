@@ -313,3 +313,15 @@ def crba_batch(ints, geo, chi, q, out):
         _local(ints, geo, q[s], rot, pos)
         _crba_one(ints, chi, rot, pos, out[s], jp, msp, mp)
     return True
+
+
+@njit(cache=True, inline="always")
+def mass_and_bias(ints, geo, chi, gravity, q, qd, zeros, mass, bias, rot, pos, w, wd, vd, f, n, jp, msp, mp):
+    """The inertia matrix at ``q`` into ``mass`` and the Newton–Euler torques at ``(q, qd, 0)`` into
+    ``bias`` (Coriolis, centrifugal, gravity and friction terms as ``chi`` and ``gravity`` have them),
+    sharing one pass of local transforms; the caller's work arrays (see :func:`rnea_batch`,
+    :func:`crba_batch`), ``zeros`` (n,) of zeros. For an integrator's right-hand side: no allocation,
+    no finiteness check."""
+    _rnea_one(ints, geo, chi, gravity, q, qd, zeros, bias, rot, pos, w, wd, vd, f, n)
+    mass[:, :] = 0.0
+    _crba_one(ints, chi, rot, pos, mass, jp, msp, mp)

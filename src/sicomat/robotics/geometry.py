@@ -12,7 +12,7 @@ from ..errors import ModelError
 if TYPE_CHECKING:
     from .table import MDHRobot
 
-__all__ = ["local_transforms", "transforms", "transform", "jacobian", "joint_states"]
+__all__ = ["local_transforms", "transforms", "transform", "frame_positions", "jacobian", "joint_states"]
 
 
 def joint_states(robot: "MDHRobot", q: Any, name: str = "q") -> np.ndarray:
@@ -111,6 +111,13 @@ def transforms(robot: "MDHRobot", q: Any) -> np.ndarray:
     out[:, :3, 3] = g_pos[0]
     out[:, 3, 3] = 1.0
     return out
+
+
+def frame_positions(robot: "MDHRobot", q: Any, j: int) -> np.ndarray:
+    """The origin of frame j in the base frame at many states, ``q`` (n_states, n): shape (n_states, 3)."""
+    j = _frame_number(robot, j, "j")
+    states = joint_states(robot, q)
+    return _global(robot, states)[1][:, j]
 
 
 def transform(robot: "MDHRobot", q: Any, j: int, i: int = 0) -> np.ndarray:

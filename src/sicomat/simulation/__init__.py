@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time as _time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -64,17 +64,19 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dura
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
 
 
-def timed_run(program: "HybridProgram", n_steps: int, task: str,
-              progress: "ProgressCallback | None") -> "tuple[KernelResult, float]":
-    """Run ``program`` for ``n_steps`` after loading (or compiling) the kernel on a two-step run, so that
-    the wall time returned is the simulation's own; ``progress`` is told the phases."""
+def timed_run(program: "HybridProgram", n_steps: int, task: str, progress: "ProgressCallback | None",
+              engine: "Callable[[HybridProgram, int], KernelResult] | None" = None) -> "tuple[KernelResult, float]":
+    """Run ``program`` for ``n_steps`` with ``engine`` (default: the linear kernel,
+    :func:`sicomat.simulation.kernel.run`) after loading (or compiling) it on a two-step run, so that the
+    wall time returned is the simulation's own; ``progress`` is told the phases."""
     from .kernel import run
 
+    engine = run if engine is None else engine
     notify(progress, "loading the simulation kernel (compiled on first use)", 0, None)
-    run(program, 2)
+    engine(program, 2)
     notify(progress, task, 0, n_steps)
     start = _time.perf_counter()
-    result = run(program, n_steps)
+    result = engine(program, n_steps)
     wall = _time.perf_counter() - start
     notify(progress, task, n_steps, n_steps)
     return result, wall

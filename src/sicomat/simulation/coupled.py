@@ -7,7 +7,7 @@ coupled mechanics' own signals.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import numpy as np
 
@@ -20,6 +20,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..progress import ProgressCallback
     from ..servo.coupled import CoupledLoop
     from ..servo.program import HybridProgram
+    from ..robotics.lowering import RigidBodyDynamics
+    from .kernel import KernelResult
 
 __all__ = ["CoupledRun", "coupled_run_program", "simulate_coupled"]
 
@@ -77,7 +79,9 @@ def coupled_run_program(coupled: "CoupledLoop", profiles: Mapping[str, "Setpoint
 
 
 def simulate_coupled(coupled: "CoupledLoop", profiles: Mapping[str, "SetpointProfile"], duration: float, *,
-                     nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> CoupledRun:
+                     nonlinear: bool = True, progress: "ProgressCallback | None" = None,
+                     dynamics: "RigidBodyDynamics | None" = None,
+                     tool_positions: "Callable[[np.ndarray], Mapping[str, np.ndarray]] | None" = None) -> CoupledRun:
     """Simulate coupled axes, each following its setpoint profile.
 
     Parameters
@@ -92,6 +96,16 @@ def simulate_coupled(coupled: "CoupledLoop", profiles: Mapping[str, "SetpointPro
         ``False`` drops limits, quantizers and Coulomb friction (the linear loops).
     progress : callable, optional
         Told the phases, as :func:`sicomat.simulate` does.
+    dynamics : RigidBodyDynamics, optional
+        A robot's rigid-body dynamics (:func:`sicomat.robotics.lowering.rigid_body_dynamics`, about the
+        configuration ``coupled.mechanics`` was linearised at, every joint free): the run then advances
+        the mechanics with the robot's nonlinear dynamics (large motions,
+        :mod:`sicomat.simulation.nonlinear`) instead of the linear model. ``info["engine"]`` says which.
+    tool_positions : callable, optional
+        The axes' tool coordinates from the joint displacements ``δq`` (n_steps, n): a mapping of axis to
+        (n_steps,) that replaces those axes' ``tool.position`` (and so ``tool_error``) — for a large motion,
+        the tool point by the robot's geometric model (:meth:`sicomat.robotics.lowering.ToolPoint.coordinates`)
+        rather than the linear tool vectors.
 
     Returns
     -------
@@ -111,16 +125,25 @@ def simulate_coupled(coupled: "CoupledLoop", profiles: Mapping[str, "SetpointPro
     from ..servo.coupled import axis_view, coupled_plant
 
     program, n_steps = coupled_run_program(coupled, profiles, duration, nonlinear=nonlinear)
+    engine = None
+    if dynamics is not None:
+        from .nonlinear import run_nonlinear
+
+        def engine(program: "HybridProgram", n: int) -> "KernelResult":
+            return run_nonlinear(program, n, dynamics)
     result, wall = timed_run(program, n_steps, f"simulating axes {', '.join(coupled.axes)}: {n_steps} steps",
-                             progress)
+                             progress, engine)
     plant = coupled_plant(coupled)
     values = result.states @ plant.C.T
     outputs = {name: values[:, i] for i, name in enumerate(plant.outputs)}
     slots = list(program.slot_names) + list(program.aliases)
+    tools = tool_positions(result.states[:, :coupled.mechanics.n]) if tool_positions is not None else {}
     axes = {}
     for loop in coupled.loops:
         own = {name: outputs[coupled_name]
                for name, coupled_name in axis_view(coupled, loop.axis, list(outputs)).items()}
+        if loop.axis in tools:
+            own["tool.position"] = np.asarray(tools[loop.axis], dtype=float)
         signals = named_signals(loop, program, result.records, profiles[loop.axis].evaluate(result.time)[0],
                                 result.states, view=axis_view(coupled, loop.axis, slots), outputs=own)
         axes[loop.axis] = axis_series(loop, profiles[loop.axis], result.time, signals, wall=wall, nonlinear=nonlinear)
@@ -130,5 +153,6 @@ def simulate_coupled(coupled: "CoupledLoop", profiles: Mapping[str, "SetpointPro
     signals = {name: outputs[name] for name in shared}
     signals.update({name: result.records[:, i] for i, name in enumerate(program.slot_names)
                     if name.startswith("friction.")})
-    info = {"wall_time_s": wall, "samples": n_steps, "step": coupled.base_period, "axes": list(coupled.axes)}
+    info = {"wall_time_s": wall, "samples": n_steps, "step": coupled.base_period, "axes": list(coupled.axes),
+            "engine": "linear" if dynamics is None else "nonlinear"}
     return CoupledRun(axes=axes, mechanics=TimeSeries(time=result.time, signals=signals, info=dict(info)), info=info)

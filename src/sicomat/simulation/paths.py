@@ -24,8 +24,11 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..progress import ProgressCallback
     from .timeseries import TimeSeries
 
-__all__ = ["PathRun", "CircleTest", "axis_for", "with_feedforward", "simulate_path", "circle_test", "axes_verdict",
+__all__ = ["PathRun", "CircleTest", "PATH_MODELS", "axis_for", "with_feedforward", "simulate_path", "circle_test", "axes_verdict",
            "PATH_METRICS"]
+
+PATH_MODELS = ("decoupled", "coupled", "nonlinear")
+"""The models a path is simulated on (:func:`simulate_path`)."""
 
 PATH_METRICS = ("max_following_error", "rms_following_error", "final_error")
 """The per-axis figures of a path run: the following error only. Step-response figures (overshoot,
@@ -167,17 +170,31 @@ def with_feedforward(machine: "Machine", mode: str | None) -> "Machine":
 
 
 def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float = 0.05,
-                  nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> PathRun:
+                  nonlinear: bool = True, progress: "ProgressCallback | None" = None,
+                  model: str = "decoupled") -> PathRun:
     """Simulate every axis of the machine that the interpolated path moves, and join the traces;
     ``progress`` (:mod:`sicomat.progress`) follows each axis's simulation.
+
+    ``model`` (:data:`PATH_MODELS`): ``"decoupled"`` simulates each axis alone on its own model (for a
+    robot machine, its decoupled linearisation: the other motors locked) and reads its tool sensor;
+    ``"coupled"`` (a ``[robot]`` machine) simulates every axis's loop together on the robot's coupled
+    linearisation at its configuration, the axes the path does not move holding their position, and
+    reads the tool point's path coordinates (:class:`sicomat.robotics.lowering.ToolPoint`, linearised);
+    ``"nonlinear"`` the same loops on the robot's nonlinear dynamics (large motions:
+    :mod:`sicomat.simulation.nonlinear`), the tool point by the geometric model. The path starts at the
+    configuration.
 
     Raises
     ------
     ModelError
-        A path axis has no machine axis, or an axis has no servo loop.
+        A path axis has no machine axis, an axis has no servo loop, an unknown ``model``, or a coupled
+        model of a machine without a ``[robot]`` section.
     SimulationDiverged
         An axis diverged; the message names it and its attribute ``axis`` too.
     """
+    if model not in PATH_MODELS:
+        raise ModelError(f"unknown model {model!r}; expected one of {', '.join(PATH_MODELS)}", path="model",
+                         value=model)
     from ..motion.contour import contour_error
     from ..servo.loop import build_servo_loop
     from . import simulate
@@ -191,7 +208,10 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
     runs: dict[str, TimeSeries] = {}
     verdicts: dict[str, Verdict] = {}
     wall = 0.0
-    for k, name in enumerate(names):
+    if model != "decoupled":
+        runs, verdicts, wall = _coupled_runs(machine, samples, mapping, duration, nonlinear=nonlinear,
+                                             progress=progress, large=model == "nonlinear")
+    for k, name in enumerate(names if model == "decoupled" else ()):
         loop = build_servo_loop(machine, mapping[name])
         axis_setpoint = samples.axis_setpoint(k)
         try:
@@ -217,13 +237,58 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
     return PathRun(path=path, samples=samples, axes=runs, time=t, s=s, setpoint=setpoint, actual=actual,
                    contour_error=contour,
                    info={"wall_time_s": wall + (_time.perf_counter() - start), "step": first.info["step"],
-                         "machine_axes": mapping}, verdicts=verdicts)
+                         "machine_axes": mapping, "model": model}, verdicts=verdicts)
+
+
+def _coupled_runs(machine: "Machine", samples: "PathSamples", mapping: dict[str, str], duration: float, *,
+                  nonlinear: bool, progress: "ProgressCallback | None", large: bool
+                  ) -> tuple[dict[str, "TimeSeries"], dict[str, Verdict], float]:
+    """The path axes' series of one coupled run of every axis of a robot machine (see :func:`simulate_path`)."""
+    from ..motion.setpoints import step_profile
+    from ..robotics.lowering import rigid_body_dynamics, tool_point
+    from ..servo.coupled import CoupledLoop, robot_coupled_loop
+    from .checks import simulation_verdict
+    from .coupled import simulate_coupled
+    from .kernel import SimulationDiverged
+
+    spec = machine.robot
+    if spec is None:
+        raise ModelError("a coupled path simulation needs a machine described by a [robot] section (its "
+                         "motorised joints are the axes); this machine's axes are independent", path="robot")
+    names = samples.path.axis_names
+    base = robot_coupled_loop(machine)
+    point = tool_point(spec, [mapping[name] for name in names])
+    rows = point.linear()
+    tools = dict(base.tools)
+    for k, name in enumerate(names):
+        tools[mapping[name]] = rows[k]
+    coupled = CoupledLoop(base.mechanics, base.loops, tools)
+    profiles = {axis: step_profile(0.0) for axis in coupled.axes}
+    for k, name in enumerate(names):
+        profiles[mapping[name]] = samples.axis_setpoint(k)
+
+    def tool_positions(dq: np.ndarray) -> dict[str, np.ndarray]:
+        c = point.coordinates(dq)
+        return {mapping[name]: c[:, k] for k, name in enumerate(names)}
+
+    try:
+        run = simulate_coupled(coupled, profiles, duration, nonlinear=nonlinear, progress=progress,
+                               dynamics=rigid_body_dynamics(spec) if large else None,
+                               tool_positions=tool_positions if large else None)
+    except SimulationDiverged as exc:
+        axes = ", ".join(coupled.axes)
+        raise SimulationDiverged(f"axes {axes} (coupled): {exc}", time=exc.time, step=exc.step) from None
+    runs = {name: run[mapping[name]] for name in names}
+    verdicts = {name: simulation_verdict(coupled.loop(mapping[name]), runs[name], profiles[mapping[name]])
+                for name in names}
+    return runs, verdicts, float(run.info["wall_time_s"])
 
 
 def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bool = False,
                 feedforward: str | None = None, max_acceleration: float | None = None,
                 max_jerk: float | None = None, axes: tuple[str, str] = ("x", "y"),
-                nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> CircleTest:
+                nonlinear: bool = True, progress: "ProgressCallback | None" = None,
+                model: str = "decoupled") -> CircleTest:
     """Simulate the ballbar circle (lead-in arc, 360° evaluated at constant feed, lead-out arc).
 
     Parameters
@@ -246,6 +311,9 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
         ``False`` simulates the linear loops (no friction, limits or quantization).
     progress : callable, optional
         Follows the axes' simulations (:mod:`sicomat.progress`).
+    model : {"decoupled", "coupled", "nonlinear"}
+        The model the axes are simulated on (:func:`simulate_path`); the circle is centred so that it
+        starts at the machine's configuration.
     """
     from ..motion.circle import evaluate_circle
     from ..motion import circle_test_path, interpolate
@@ -277,7 +345,7 @@ def circle_test(machine: "Machine", radius: float, feed: float, *, clockwise: bo
     from .kernel import SimulationDiverged
 
     try:
-        run = simulate_path(machine, samples, nonlinear=nonlinear, progress=progress)
+        run = simulate_path(machine, samples, nonlinear=nonlinear, progress=progress, model=model)
     except SimulationDiverged as exc:
         return CircleTest(run=None, circle=None, verdict=verdict.with_warnings(
             [f"{exc}", "no circle figures: an axis diverged"], unstable=True), **about)
