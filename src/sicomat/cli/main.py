@@ -467,12 +467,16 @@ def circle(model: Path = ModelArgument,
                                                           "feedforward on every axis."),
            magnification: Optional[float] = typer.Option(None, "--magnification", callback=number(gt=0),
                                                          help="Scale of the deviation in the polar plot."),
+           circle_model: Optional[str] = typer.Option(None, "--model", metavar="decoupled|coupled|nonlinear",
+                                                      help="The model whose figures are reported, on a [robot] "
+                                                           "machine (default nonlinear); all three are compared."),
            set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
     """ISO 230-4 circle test (ballbar) on the X and Y axes: circular and radial deviation, reversal spikes,
-    servo mismatch."""
+    servo mismatch; on a [robot] machine also what the coupling of the axes adds (decoupled, coupled and
+    nonlinear models compared)."""
     with guarded(model):
         from ..errors import ModelError
-        from ..simulation.paths import circle_test
+        from ..tasks.circle import circle_report
 
         if feedforward is not None and feedforward not in ("on", "off"):
             raise ModelError("expected 'on' or 'off'", source="--feedforward", value=feedforward)
@@ -481,23 +485,26 @@ def circle(model: Path = ModelArgument,
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
         with progress_bar() as progress:
-            test = circle_test(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw, feedforward=feedforward,
-                               progress=progress)
-        payload = test.to_dict()
+            test, payload, tests = circle_report(machine, radius * 1e-3, feed * 1e-3 / 60.0, clockwise=not ccw,
+                                                 feedforward=feedforward, model=circle_model, progress=progress)
         if plot is not None:
             if test.circle is not None:
                 from ..plots.base import save_figure
 
-                save_figure(test.plot(magnification), plot)
+                others = {name: other.circle for name, other in tests.items()
+                          if other is not test and other.circle is not None}
+                save_figure(test.plot(magnification, label=payload["model"], others=others), plot)
             else:
                 payload["warnings"].append("no figure written (--plot): an axis is unstable")
         if json_:
             emit_json(payload)
         else:
-            from .tables import print_circle, print_verdict
+            from .tables import print_circle, print_circle_coupling, print_verdict
 
             if test.circle is not None:
                 print_circle(payload)
+            if "coupling" in payload:
+                print_circle_coupling(payload)
             print_verdict(payload, "axes")
         exit_for(payload)
 

@@ -259,6 +259,32 @@ def print_circle(payload: dict[str, Any]) -> None:
     print_table(Console(highlight=False), table)
 
 
+def print_circle_coupling(payload: dict[str, Any]) -> None:
+    """Print the comparison of the models of ``sicomat circle`` on a robot machine."""
+    from rich.console import Console
+    from rich.table import Table
+
+    coupling = payload["coupling"]
+    table = Table(title="what the coupling of the axes adds (tool point; decoupled: each axis alone on its own "
+                        "linearisation)", title_justify="left")
+    table.add_column("model")
+    for col in ("circular deviation (µm)", "max contour error (µm)"):
+        table.add_column(col, justify="right")
+
+    def cell(value: Any, sign: str = "") -> str:
+        return "—" if value is None else f"{value * 1e6:{sign}.4g}"
+
+    for name in ("decoupled", "coupled", "nonlinear"):
+        line = coupling[name]
+        chosen = " (reported)" if name == payload.get("model") else ""
+        table.add_row(name + chosen, cell(line["circular_deviation"]), cell(line["max_contour_error"]))
+    for key, label in (("added_by_linear_coupling", "added: linear coupling"),
+                       ("added_by_large_motion", "added: large motion"),
+                       ("added_by_coupling", "added: coupling in all")):
+        table.add_row(label, cell(coupling[key]["circular_deviation"], "+"), cell(coupling[key]["max_contour_error"], "+"))
+    print_table(Console(highlight=False), table)
+
+
 def print_path(payload: dict[str, Any]) -> None:
     """Print the figures of ``sicomat simulate --gcode``."""
     from rich.console import Console

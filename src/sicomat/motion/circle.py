@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -103,11 +103,13 @@ class CircleResult:
                 "radius_mm": self.radius * 1e3,
                 "feed_mm_min": None if self.feed is None else self.feed * 6e4}
 
-    def plot(self, magnification: float | None = None):
-        """Polar plot of the radial deviation, magnified, as a ballbar report shows it; returns the Figure."""
+    def plot(self, magnification: float | None = None, *, label: str | None = None,
+             others: "Mapping[str, CircleResult] | None" = None):
+        """Polar plot of the radial deviation, magnified, as a ballbar report shows it; ``others`` (by
+        label) are drawn beside it, thinner; returns the Figure."""
         from ..plots.motion import plot_circle
 
-        return plot_circle(self, magnification)
+        return plot_circle(self, magnification, label=label, others=others)
 
 
 def least_squares_circle(x: np.ndarray, y: np.ndarray, center: Sequence[float] | None = None,

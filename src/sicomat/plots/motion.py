@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Mapping, cast
 
 import numpy as np
 
@@ -31,27 +31,42 @@ def _nice_step(span: float) -> float:
     return 10 ** (exp + 1)  # pragma: no cover
 
 
-def plot_circle(result: "CircleResult", magnification: float | None = None) -> "Figure":
+def plot_circle(result: "CircleResult", magnification: float | None = None, *, label: str | None = None,
+                others: "Mapping[str, CircleResult] | None" = None) -> "Figure":
     """Ballbar-style polar plot: nominal circle, radial deviation magnified, figures in the title.
 
     The nominal circle is drawn at unit radius and a deviation ``F`` at ``1 + magnification·F/R``;
     the rings are labelled in µm of deviation. By default the magnification is the 1-2-5 value that draws
     the largest deviation at 8–20 % of the radius (:func:`auto_magnification`); the
-    factor is in the title and the legend.
+    factor is in the title and the legend. ``label`` names the figure's trace (a model); ``others`` are
+    circles of other models drawn thinner beside it (the figures in the title are ``result``'s).
     """
     dev, radius = result.radial_deviation, result.radius
-    peak = float(np.max(np.abs(dev))) if dev.size else 0.0
+    others = dict(others or {})
+    peak = max([float(np.max(np.abs(c.radial_deviation))) for c in [result, *others.values()] if c.radial_deviation.size],
+               default=0.0)
     if magnification is None:
         magnification = auto_magnification(peak, radius)
     scale = magnification / radius                         # plot units per metre of deviation
     order = np.argsort(result.angle)
     theta = np.append(result.angle[order], result.angle[order][0] + 2 * math.pi)
     rho = 1.0 + scale * np.append(dev[order], dev[order][0])
-    fig = new_figure(figsize=(6.4, 6.8))
-    ax = cast("PolarAxes", fig.add_subplot(projection="polar"))
+    if others:
+        fig = new_figure(figsize=(6.4, 9.0), layout="none")
+        ax = cast("PolarAxes", fig.add_axes((0.1, 0.32, 0.8, 0.56), projection="polar"))
+    else:
+        fig = new_figure(figsize=(6.4, 6.8))
+        ax = cast("PolarAxes", fig.add_subplot(projection="polar"))
     circle = np.linspace(0, 2 * math.pi, 361)
     ax.plot(circle, np.ones_like(circle), color="gray", linestyle="--", linewidth=0.8, label="nominal")
-    ax.plot(theta, rho, color="tab:blue", linewidth=1.0, label=f"actual (deviation ×{magnification:g})")
+    name = f"{label}: actual" if label else "actual"
+    ax.plot(theta, rho, color="tab:blue", linewidth=1.2, label=f"{name} (deviation ×{magnification:g})", zorder=3)
+    for (other_name, other), color in zip(others.items(), ("tab:orange", "tab:green", "tab:purple")):
+        o = np.argsort(other.angle)
+        ax.plot(np.append(other.angle[o], other.angle[o][0] + 2 * math.pi),
+                1.0 + scale * np.append(other.radial_deviation[o], other.radial_deviation[o][0]),
+                color=color, linewidth=0.8, alpha=0.8, linestyle="-.",
+                label=f"{other_name}: G = {other.circular_deviation * 1e6:.3g} µm")
     span = max(peak, 1e-12)
     step = _nice_step(span)
     count = int(math.ceil(span / step))
@@ -65,14 +80,31 @@ def plot_circle(result: "CircleResult", magnification: float | None = None) -> "
             ax.annotate(f"{spike.height * 1e6:+.2g} µm", (at, float(np.interp(at, theta, rho, period=2 * math.pi))),
                         fontsize=7, color="tab:red")
     direction = "CW" if result.clockwise else "CCW"
-    feed = f", F = {result.feed * 60e3:.4g} mm/min" if result.feed else ""
-    fig.suptitle(f"Circle test R = {radius * 1e3:.4g} mm, {direction}{feed}, deviation drawn ×{magnification:g}\n"
+    feed = f", F = {result.feed * 60e3:.5g} mm/min" if result.feed else ""
+    model = f" ({label} model)" if label else ""
+    fig.suptitle(f"Circle test{model} R = {radius * 1e3:.4g} mm, {direction}{feed}, deviation drawn ×{magnification:g}\n"
                  f"circular deviation G = {result.circular_deviation * 1e6:.3g} µm, "
                  f"F min/max = {result.radial_deviation_min * 1e6:.3g} / {result.radial_deviation_max * 1e6:.3g} µm\n"
                  f"mean radial deviation {result.mean_radial_deviation * 1e6:.3g} µm, servo mismatch "
                  f"{result.servo_mismatch * 1e6:.3g} µm at {math.degrees(result.servo_mismatch_angle):.1f}°",
                  fontsize=9)
     ax.legend(loc="lower left", bbox_to_anchor=(-0.1, -0.12), fontsize=8)
+    if others:
+        # the differences are often far below the deviation itself: drawn on their own scale
+        diff_ax = fig.add_axes((0.15, 0.05, 0.8, 0.14))
+        at = np.mod(result.angle, 2 * math.pi)
+        mine = np.argsort(at)
+        for (other_name, other), color in zip(others.items(), ("tab:orange", "tab:green", "tab:purple")):
+            o = np.argsort(other.angle)
+            theirs = np.interp(at[mine], other.angle[o], other.radial_deviation[o], period=2 * math.pi)
+            diff_ax.plot(np.degrees(at[mine]), (dev[mine] - theirs) * 1e6, color=color, linewidth=0.9,
+                         label=f"{label or 'actual'} − {other_name}")
+        diff_ax.set_xlim(0.0, 360.0)
+        diff_ax.set_xticks(range(0, 361, 45))
+        diff_ax.set_xlabel("angle (°)")
+        diff_ax.set_ylabel("radial deviation\ndifference (µm)")
+        diff_ax.grid(True, alpha=0.3)
+        diff_ax.legend(fontsize=8, loc="upper right")
     return fig
 
 

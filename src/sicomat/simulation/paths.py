@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time as _time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
@@ -125,13 +125,14 @@ class CircleTest:
                     "axes": self.run.to_dict()["axes"], **self.verdict.to_dict()})
         return out
 
-    def plot(self, magnification: float | None = None):
-        """The ballbar-style polar plot of the radial deviation."""
+    def plot(self, magnification: float | None = None, *, label: str | None = None,
+             others: "Mapping[str, CircleResult] | None" = None):
+        """The ballbar-style polar plot of the radial deviation (``others``: circles drawn beside it)."""
         if self.circle is None:
             from ..errors import AnalysisError
 
             raise AnalysisError("no circle figure: " + "; ".join(self.verdict.warnings))
-        return self.circle.plot(magnification)
+        return self.circle.plot(magnification, label=label, others=others)
 
 
 def axes_verdict(machine: "Machine", names) -> Verdict:
