@@ -64,11 +64,11 @@ def circle_report(machine: "Machine", radius: float, feed: float, *, clockwise: 
     from ..simulation.paths import PATH_MODELS, circle_test
 
     if model is not None and model not in PATH_MODELS:
-        raise ModelError(f"expected one of {', '.join(PATH_MODELS)}", source="--model", value=model)
+        raise ModelError(f"expected one of {', '.join(PATH_MODELS)}", path="model", value=model)
     robot = machine.robot is not None
     if not robot and model not in (None, "decoupled"):
         raise ModelError("the coupled and nonlinear models need a machine described by a [robot] section; this "
-                         "machine's axes are independent (its only model: decoupled)", source="--model", value=model)
+                         "machine's axes are independent (its only model: decoupled)", path="model", value=model)
     chosen = model or ("nonlinear" if robot else "decoupled")
     models = PATH_MODELS if robot else ("decoupled",)
     tests = {name: circle_test(machine, radius, feed, clockwise=clockwise, feedforward=feedforward,
