@@ -323,6 +323,7 @@ MAX_LINES = 400
 LONG_MODULES: dict[str, str] = {
     "sicomat.lti.response": "the one frequency-response evaluator (strategies, accuracy contract) and its result",
     "sicomat.simulation.kernel": "the compiled (numba) kernel that executes a hybrid program, single and batched",
+    "sicomat.simulation.nonlinear": "the compiled large-motion engine of a robot machine: its loop, right-hand side and stick-slip",
     "sicomat.simulation.envelope": "bounds of the friction-event functions inside a base step (in-step events)",
     "sicomat.reduction.balanced": "Gramian-based reduction: balanced truncation and its variants (Schur, frequency-limited, Hankel norm)",
     "sicomat.reduction.physical": "physical regrouping: a smaller lumped model that keeps named bodies",

@@ -538,6 +538,38 @@ def _current_limit(w, i_peak, u_max, R, ke, wl):
 
 
 @njit(cache=True, error_model="numpy", inline='always')
+def _ops_state(op_code, op_period, op_phase, op_ip, n_delay):
+    """The ops' run state at k = 0: ``count`` (executions of a Setpoint, ring position of a Delay),
+    ``wait`` (steps until each op is first due: the first k >= 0 with (k - phase) % period == 0), the
+    linear blocks' scratch rows and the delay lines' buffer."""
+    n_ops = op_code.shape[0]
+    count = np.zeros(n_ops, dtype=np.int64)
+    wait = np.empty(n_ops, dtype=np.int64)
+    scratch_n = 1
+    for o in range(n_ops):
+        wait[o] = op_phase[o] % op_period[o]
+        if op_code[o] == _LIN_OUT or op_code[o] == _LIN_UPD:
+            scratch_n = max(scratch_n, op_ip[o, 0])
+    return count, wait, np.zeros(scratch_n), np.zeros(n_delay)
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _divergence_limit(z, nx, k, warmup, limit, limit_abs, limit_factor, scale):
+    """Whether a continuous state passed ``limit``, and the limit and scale after step ``k`` (without an
+    absolute limit, ``limit_factor * (1 + s)`` once the first ``warmup`` steps have set the scale s)."""
+    bad = False
+    for i in range(nx):
+        if not abs(z[i]) <= limit:
+            bad = True
+    if limit_abs <= 0.0 and k < warmup:
+        for i in range(nx):
+            scale = max(scale, abs(z[i]))
+        if k == warmup - 1:
+            limit = limit_factor * (1.0 + scale)
+    return bad, limit, scale
+
+
+@njit(cache=True, error_model="numpy", inline='always')
 def _run_ops(op_code, op_period, op_ip, op_fp, idx, fdata, table, slots, xb, tb, delay_buf, count, wait):
     """Step (2) of a base step: the ops due now, in list order (``wait[o]``: steps until op o is due;
     ``count[o]``: executions of a Setpoint, ring position of a Delay). Shared by :func:`_simulate` and
@@ -639,7 +671,6 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     ny = out_slots.shape[0]     # rows of the sparse [C D] (out_ptr, out_col, out_val) over z
     nf = coulomb.shape[0]
     nz = nx + nu + nf
-    n_ops = op_code.shape[0]
     n_rec = rec_slots.shape[0]
     rec_all = n_rec == n_slots      # every slot recorded in order: rows are copies of the slots
     for i in range(n_rec):
@@ -648,15 +679,7 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
 
     slots = np.zeros(n_slots)
     xb = xb0.copy()
-    delay_buf = np.zeros(n_delay)
-    count = np.zeros(n_ops, dtype=np.int64)     # executions (Setpoint) or ring position (Delay)
-    wait = np.empty(n_ops, dtype=np.int64)
-    scratch_n = 1
-    for o in range(n_ops):
-        wait[o] = op_phase[o] % op_period[o]    # first k >= 0 with (k - phase) % period == 0
-        if op_code[o] == _LIN_OUT or op_code[o] == _LIN_UPD:
-            scratch_n = max(scratch_n, op_ip[o, 0])
-    tb = np.zeros(scratch_n)
+    count, wait, tb, delay_buf = _ops_state(op_code, op_period, op_phase, op_ip, n_delay)
     z = np.zeros(nz)           # [x; u; f]
     zc = np.zeros(nz)          # candidate [x+; u; f]
     zp = np.zeros(nz)
@@ -815,20 +838,11 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
             hold_ok = True      # the event values at zc, now z, hold the stuck links' forces
 
         # divergence
-        bad = False
-        for i in range(nx):
-            v = abs(z[i])
-            if not v <= limit:
-                bad = True
+        bad, limit, scale = _divergence_limit(z, nx, k, warmup, limit, limit_abs, limit_factor, scale)
         if bad:
             status = _DIVERGED_STATE
             k_bad = k
             break
-        if limit_abs <= 0.0 and k < warmup:
-            for i in range(nx):
-                scale = max(scale, abs(z[i]))
-            if k == warmup - 1:
-                limit = limit_factor * (1.0 + scale)
 
     for i in range(nx):
         x_final[i] = z[i]

@@ -39,9 +39,8 @@ from ..errors import ModelError
 from ..robotics.lowering import RigidBodyDynamics
 from ..robotics._kernels import _crba_one, _local, flat_arrays, mass_and_bias
 from ..servo.program import HybridProgram
-from .kernel import (DIVERGENCE_WARMUP, KernelResult, _check_run_args, _divergence_args, _diverged, _run_ops)
-from .lowering import LIN_OUT as _LIN_OUT
-from .lowering import LIN_UPD as _LIN_UPD
+from .kernel import (DIVERGENCE_WARMUP, KernelResult, _check_run_args, _divergence_args, _diverged,
+                     _divergence_limit, _ops_state, _run_ops)
 from .lowering import lower
 
 __all__ = ["run_nonlinear", "substeps", "STEP_SCALE"]
@@ -212,21 +211,12 @@ def _simulate_nonlinear(n_steps, n_sub, limit_abs, limit_factor, warmup,
     ny = out_slots.shape[0]
     nf = coulomb.shape[0]
     n = q0.shape[0]
-    n_ops = op_code.shape[0]
     n_rec = rec_slots.shape[0]
     nframes = ints.shape[0]
 
     slots = np.zeros(n_slots)
     xb = xb0.copy()
-    delay_buf = np.zeros(n_delay)
-    count = np.zeros(n_ops, dtype=np.int64)
-    wait = np.empty(n_ops, dtype=np.int64)
-    scratch_n = 1
-    for o in range(n_ops):
-        wait[o] = op_phase[o] % op_period[o]
-        if op_code[o] == _LIN_OUT or op_code[o] == _LIN_UPD:
-            scratch_n = max(scratch_n, op_ip[o, 0])
-    tb = np.zeros(scratch_n)
+    count, wait, tb, delay_buf = _ops_state(op_code, op_period, op_phase, op_ip, n_delay)
 
     # work arrays of the robot's recursions
     zeros = np.zeros(n)
@@ -366,17 +356,9 @@ def _simulate_nonlinear(n_steps, n_sub, limit_abs, limit_factor, warmup,
             any_stuck |= stuck[j]
 
         # divergence
-        bad = False
-        for i in range(nx):
-            if not abs(z[i]) <= limit:
-                bad = True
+        bad, limit, scale = _divergence_limit(z, nx, k, warmup, limit, limit_abs, limit_factor, scale)
         if bad:
             return _DIVERGED_STATE, k
-        if limit_abs <= 0.0 and k < warmup:
-            for i in range(nx):
-                scale = max(scale, abs(z[i]))
-            if k == warmup - 1:
-                limit = limit_factor * (1.0 + scale)
     for i in range(nx):
         x_final[i] = z[i]
     return _OK, -1
@@ -409,7 +391,7 @@ def run_nonlinear(program: HybridProgram, n_steps: int, dynamics: RigidBodyDynam
     M0 = np.asarray(dynamics.mass0, dtype=float)
     _check_layout(A, B, np.asarray(cont.F, dtype=float).reshape(nx, -1), m["G"], low.links, M0, n)
     robot = dynamics.robot
-    ints, geo, chi = flat_arrays(robot)        # type: ignore[arg-type]
+    ints, geo, chi = flat_arrays(robot)
     chi = np.array(chi)
     chi[:, 11:13] = 0.0                        # friction: the program's links and viscous terms have it
     Kq = np.ascontiguousarray(M0 @ A[n:2 * n])

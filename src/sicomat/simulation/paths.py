@@ -264,7 +264,7 @@ def _coupled_runs(machine: "Machine", samples: "PathSamples", mapping: dict[str,
     for k, name in enumerate(names):
         tools[mapping[name]] = rows[k]
     coupled = CoupledLoop(base.mechanics, base.loops, tools)
-    profiles = {axis: step_profile(0.0) for axis in coupled.axes}
+    profiles: dict[str, Any] = {axis: step_profile(0.0) for axis in coupled.axes}   # a profile each
     for k, name in enumerate(names):
         profiles[mapping[name]] = samples.axis_setpoint(k)
 
