@@ -92,3 +92,26 @@ def physical_inertia(rng: np.random.Generator) -> dict[str, float]:
     j_o = j_com + mass * (com @ com * np.eye(3) - np.outer(com, com))
     return {"XX": j_o[0, 0], "XY": j_o[0, 1], "XZ": j_o[0, 2], "YY": j_o[1, 1], "YZ": j_o[1, 2],
             "ZZ": j_o[2, 2], "MX": mass * com[0], "MY": mass * com[1], "MZ": mass * com[2], "M": mass}
+
+
+def xy_inertia_by_lagrange(spec, q) -> np.ndarray:
+    """The inertia matrix of ``examples/xy_elastic.toml`` at ``q`` (X, X_screw, yaw, Y, Y_screw): the notes' §4
+    closed form (sympy Lagrange on the MDH kinematics), the frame parameters read by name from the model file's
+    ``[robot]`` section ``spec`` (shared by the model and mode-map tests)."""
+    f = {frame.name: frame for frame in spec.frames}
+    M3, ZZ3, MX3, MY3 = f["yaw"].M, f["yaw"].ZZ, f["yaw"].MX, f["yaw"].MY
+    M5, MX5, YY5 = f["Y_screw"].M, f["Y_screw"].MX, f["Y_screw"].YY
+    IA1, IA4 = f["X"].IA, f["Y"].IA
+    y = q[3] + q[4]
+    c, s = math.cos(q[2]), math.sin(q[2])
+    a13 = -(M5 * y + MY3) * c - (MX3 + MX5) * s
+    A = np.zeros((5, 5))
+    A[0, 0] = IA1 + M3 + M5
+    A[0, 1] = A[1, 1] = M3 + M5
+    A[0, 2] = A[1, 2] = a13
+    A[0, 3] = A[0, 4] = A[1, 3] = A[1, 4] = -M5 * s
+    A[2, 2] = ZZ3 + YY5 + M5 * y ** 2
+    A[2, 3] = A[2, 4] = MX5
+    A[3, 3] = IA4 + M5
+    A[3, 4] = A[4, 4] = M5
+    return np.triu(A) + np.triu(A, 1).T

@@ -28,6 +28,8 @@ from sicomat.errors import ModelError
 from sicomat.io import load_model, machine_from_dict
 from sicomat.robotics.lowering import axis_mechanics, gravity_stiffness, linearize, robot_mechanics, robot_model
 
+from robotics_models import xy_inertia_by_lagrange as _xy_inertia_by_lagrange  # the notes' §4 closed form, shared
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 XY = EXAMPLES / "xy_elastic.toml"
 runner = CliRunner()
@@ -39,27 +41,6 @@ def run(*args: str):
 
 
 # --------------------------------------------------------------------------- the elastic XY example
-def _xy_inertia_by_lagrange(spec, q) -> np.ndarray:
-    """The notes' §4 closed form (sympy Lagrange on the MDH kinematics), frame parameters read by name."""
-    f = {frame.name: frame for frame in spec.frames}
-    M3, ZZ3, MX3, MY3 = f["yaw"].M, f["yaw"].ZZ, f["yaw"].MX, f["yaw"].MY
-    M5, MX5, YY5 = f["Y_screw"].M, f["Y_screw"].MX, f["Y_screw"].YY
-    IA1, IA4 = f["X"].IA, f["Y"].IA
-    y = q[3] + q[4]
-    c, s = math.cos(q[2]), math.sin(q[2])
-    a13 = -(M5 * y + MY3) * c - (MX3 + MX5) * s
-    A = np.zeros((5, 5))
-    A[0, 0] = IA1 + M3 + M5
-    A[0, 1] = A[1, 1] = M3 + M5
-    A[0, 2] = A[1, 2] = a13
-    A[0, 3] = A[0, 4] = A[1, 3] = A[1, 4] = -M5 * s
-    A[2, 2] = ZZ3 + YY5 + M5 * y ** 2
-    A[2, 3] = A[2, 4] = MX5
-    A[3, 3] = IA4 + M5
-    A[3, 4] = A[4, 4] = M5
-    return np.triu(A) + np.triu(A, 1).T
-
-
 @pytest.mark.parametrize("q", [[0.0, 0.0, 0.0, 0.15, 0.0], [0.3, 1e-5, 0.02, -0.2, 2e-5], [-0.5, 0.0, -0.7, 0.4, 0.0]])
 def test_xy_example_linear_model_is_the_notes_closed_form(q):
     machine = load_model(XY)

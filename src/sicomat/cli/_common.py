@@ -22,6 +22,7 @@ OPTIONS = {
     "position_phase_margin": "--position-phase-margin", "radius": "--radius", "feed": "--feed",
     "feed_mm_min": "--feed", "feedforward": "--feedforward", "step_mm": "--step", "move_mm": "--move",
     "q": "--q", "qd": "--qd", "qdd": "--qdd", "model": "--model",
+    "joint": "--joint", "points": "--points", "modes": "--modes",
 }
 """The library's parameter (``ModelError.path`` of an error raised without a ``source``) -> the option
 that gives it: the core and ``tasks/`` name parameters, never options; :func:`guarded` locates their

@@ -155,18 +155,46 @@ def modal(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 @app.command()
 def modemap(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             points: int = typer.Option(21, "--points", min=2, max=2001, metavar="N",
-                                       help="Positions over the stroke, both ends included."),
+                                       help="Positions over the stroke, both ends included (with --joint: values "
+                                            "per joint, at most 101 with two joints)."),
             modes: int = typer.Option(3, "--modes", min=1, max=1000, metavar="M",
                                       help="Flexible modes per position."),
+            joint: Optional[List[str]] = typer.Option(
+                None, "--joint", metavar="NAME=LOW:HIGH",
+                help="A \\[robot] machine: sweep this joint over LOW..HIGH, with units (Y=0mm:400mm, "
+                     "A2=-90deg:90deg); give one or two. The modes with every motor locked, or with --axis A "
+                     "that axis's model (its motor free, the others locked)."),
+            q: Optional[str] = typer.Option(None, "--q", metavar="Q1,Q2,..",
+                                            help="With --joint: the configuration the other joints are held at "
+                                                 "(every joint in frame order, as modal --q; default: the "
+                                                 "model's)."),
             set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
             plot: Optional[Path] = PlotOption) -> None:
-    """Mode map of a drive-chain axis: its first flexible modes as the table travels over the stroke."""
+    """Mode map: a drive-chain axis's first flexible modes as the table travels over the stroke, or a \\[robot]
+    machine's first modes as one or two joints sweep the workspace (--joint)."""
     with guarded(model):
         from ..io.atomic import check_outputs
         from ..tasks.modemap import mode_map
 
         check_outputs({"--plot": (plot, "figure")}, {"the model file": model})
         machine = load(model, set_)
+        if joint or q is not None or machine.robot is not None:
+            from ..tasks.workspace_map import workspace_mode_map
+
+            with progress_bar() as progress:
+                workspace = workspace_mode_map(machine, joint or [], points, modes, q=q, axis=axis,
+                                               progress=progress)
+            if plot is not None:
+                from ..plots.base import save_figure
+
+                save_figure(workspace.plot(), plot)
+            if json_:
+                emit_json(workspace.to_dict())
+            else:
+                from .tables_chains import print_workspace_map
+
+                print_workspace_map(workspace.to_dict())
+            return
         with progress_bar() as progress:
             result = mode_map(machine, axis, points, modes, progress=progress)
         if plot is not None:

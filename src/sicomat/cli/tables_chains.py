@@ -1,13 +1,15 @@
 """Tables of the drive-chain commands (issue 12): what a chain lowers to (``check --lumped``), the mode map
-(``modemap``), the margins over the stroke (``tune --all-positions``) and the sizing checks (``size``)."""
+(``modemap``; over a robot's workspace too, issue 13), the margins over the stroke (``tune --all-positions``)
+and the sizing checks (``size``)."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from .layout import print_table
 
-__all__ = ["print_drive_chain", "print_sizing", "print_mode_map", "print_stroke_tuning"]
+__all__ = ["print_drive_chain", "print_sizing", "print_mode_map", "print_workspace_map", "print_stroke_tuning"]
 
 
 def print_drive_chain(axis: str, chain: dict[str, Any]) -> None:
@@ -121,6 +123,55 @@ def print_mode_map(payload: dict[str, Any]) -> None:
         console.print(f"lowest first mode {payload['lowest_first_mode_hz']:.4g} Hz at {worst * 1e3:.6g} mm")
     for note in payload.get("notes", []):
         console.print(f"note: {note}", markup=False)
+
+
+def print_workspace_map(payload: dict[str, Any]) -> None:
+    """Print the mode map of ``sicomat modemap --joint``: one row per configuration (joint values in mm or
+    deg), the worst one marked, a failed one with its reason."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(highlight=False)
+    scales = [(1e3, "mm") if unit == "m" else (180.0 / math.pi, "deg") for unit in payload["units"]]
+    table = Table(title=f"{payload['machine'] or 'robot'}: {_what_is_mapped(payload)}", title_justify="left")
+    for name, (_, unit) in zip(payload["joints"], scales):
+        table.add_column(f"{name} ({unit})", justify="right")
+    for k in range(payload["modes"]):
+        table.add_column(f"f{k + 1} (Hz)", justify="right")
+    table.add_column("")
+    one = len(payload["joints"]) == 1
+    worst = payload["worst_position"]
+    distinct = list(dict.fromkeys(f["reason"] for f in payload["failed"]))     # each reason printed once, below
+    reasons = {_json_key(f["position"]): distinct.index(f["reason"]) + 1 for f in payload["failed"]}
+    for x, row in zip(payload["position"], payload["frequencies_hz"]):
+        values = [x] if one else x
+        reason = reasons.get(_json_key(x))
+        mark = "worst (lowest f1)" if x == worst else (f"failed [{reason}]" if reason is not None else "")
+        cells = ["-" if f is None else f"{f:.4f}" for f in row]
+        table.add_row(*(f"{v * scale:.6g}" for v, (scale, _) in zip(values, scales)), *cells, mark,
+                      style="bold red" if x == worst else ("dim" if reason is not None else None))
+    print_table(console, table)
+    if worst is not None:
+        at = ", ".join(f"{name} = {v * scale:.6g} {unit}" for name, v, (scale, unit)
+                       in zip(payload["joints"], [worst] if one else worst, scales))
+        console.print(f"lowest first mode {payload['lowest_first_mode_hz']:.4g} Hz at {at}", markup=False)
+    for note in payload.get("notes", []):
+        console.print(f"note: {note}", markup=False)
+    for i, reason in enumerate(distinct, start=1):
+        console.print(f"failed [{i}]: {reason}", markup=False)
+
+
+def _what_is_mapped(payload: dict[str, Any]) -> str:
+    locked = ", ".join(payload["locked"]) or "none"
+    joints = " and ".join(payload["joints"])
+    if payload["axis"] is None:
+        return f"modes over {joints}, motors locked ({locked})"
+    return f"axis {payload['axis']}'s model over {joints} (motor {payload['axis']} free, locked: {locked})"
+
+
+def _json_key(position: Any) -> Any:
+    """A map position (a value, or a list of two) as a dictionary key."""
+    return tuple(position) if isinstance(position, list) else position
 
 
 def print_stroke_tuning(payload: dict[str, Any]) -> None:

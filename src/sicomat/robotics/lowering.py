@@ -27,8 +27,8 @@ if TYPE_CHECKING:
     from ..description.machine import Machine
     from ..description.robot import RobotSpec
 
-__all__ = ["Linearization", "RigidBodyDynamics", "rigid_body_dynamics", "ToolPoint", "tool_point", "robot_model", "linearize", "gravity_stiffness", "robot_mechanics",
-           "axis_mechanics", "configuration"]
+__all__ = ["Linearization", "RigidBodyDynamics", "rigid_body_dynamics", "ToolPoint", "tool_point", "robot_model",
+           "linearize", "gravity_stiffness", "robot_mechanics", "axis_free_joints", "axis_mechanics", "configuration"]
 
 # Gravity stiffness by central differences with one Richardson step: truncation O(h^4) of the torque's
 # fifth derivative (h = 1e-3 rad or m on a machine of metres: ~1e-12 of the torque scale) and rounding
@@ -224,6 +224,13 @@ def robot_mechanics(spec: "RobotSpec", q: "Sequence[float] | np.ndarray | None" 
                                    frictions=frictions)
 
 
+def axis_free_joints(spec: "RobotSpec", axis: str | None) -> list[str]:
+    """The joints left free (frame order) in axis ``axis``'s decoupled model: its own motorised joint and
+    every joint that is not motorised (the elastic ones); the other motors are locked. ``axis=None``:
+    every motor locked (the structure's own modes, ``sicomat modal`` on a robot)."""
+    return [j for j in spec.joint_names if j == axis or j not in spec.motor_names]
+
+
 def axis_mechanics(machine: "Machine", axis: str | None = None) -> Mechanics:
     """The mechanics of one axis of ``machine``, checked: an axis's own mechanics description lowered
     (:func:`sicomat.mechanics.lumped.check_axis_mechanics`), or for a robot's axis the robot linearised at
@@ -239,8 +246,7 @@ def axis_mechanics(machine: "Machine", axis: str | None = None) -> Mechanics:
     if machine.robot is None or spec.mechanics is not None:
         return check_axis_mechanics(name, spec.mechanics)
     robot = machine.robot
-    free = [j for j in robot.joint_names if j == name or j not in robot.motor_names]
-    mech = robot_mechanics(robot, free=free, gravity=False)
+    mech = robot_mechanics(robot, free=axis_free_joints(robot, name), gravity=False)
     check_resolvable(mech)
     return mech
 

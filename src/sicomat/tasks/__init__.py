@@ -6,6 +6,7 @@ from .analysis import bode_payload, margins_payload, write_tuned, response_verdi
 from .reduce import (reduce_command, write_reduced, parse_band, parse_keep, parse_signals, default_transfer, default_band, METHODS)
 from .simulate import choose_profile, simulate_payload, diverged_payload, simulate_gcode, STEP_FIGURES
 from .modemap import ModeMap, mode_map, machine_at
+from .workspace_map import WorkspaceModeMap, workspace_mode_map
 from .tune_positions import StrokeTuning, PositionMargins, tune_over_stroke
 
 __all__ = [
@@ -30,6 +31,8 @@ __all__ = [
     "ModeMap",
     "mode_map",
     "machine_at",
+    "WorkspaceModeMap",
+    "workspace_mode_map",
     "StrokeTuning",
     "PositionMargins",
     "tune_over_stroke",

@@ -93,11 +93,11 @@ def locked_modes(machine: "Machine", q: Any = None) -> tuple["ModalResult", dict
     computed at (``configuration`` by joint name, ``locked`` joints)."""
     from ..mechanics.conditioning import check_resolvable
     from ..mechanics.modal import modal_analysis
-    from ..robotics.lowering import configuration, robot_mechanics
+    from ..robotics.lowering import axis_free_joints, configuration, robot_mechanics
 
     spec = robot_of(machine)
     q0 = configuration(spec, None if q is None else joint_values(spec, q, "q"))
-    free = [j for j in spec.joint_names if j not in spec.motor_names]
+    free = axis_free_joints(spec, None)
     if not free:
         raise ModelError("the robot has no joint left once its motors are locked (no elastic joint): it has no "
                          "modes of its own; give --axis to see an axis's rigid model", path="robot.frames")
