@@ -202,6 +202,29 @@ def test_gantry_at_a_skew_against_lagrange_from_plane_geometry():
     assert "slide_friction" not in {f.name for f in aligned.frictions}
 
 
+def test_coulomb_friction_of_a_passive_joint_acts_on_its_sliding_in_simulation():
+    """A dry friction of 30 N m in the beam's yaw pin (passive). Axis X1 moves 20 mm with X2 locked, so the beam
+    yaws about carriage 2 and the pin slides: the simulator's friction on the link whose vector is the pin's
+    row of G (its rate is psi' = (x_c1' - x_c2') / L) is -FS sign(psi') wherever the pin slides, and never
+    more than FS (stick–slip: the friction of a joint, not of a coordinate)."""
+    from sicomat import simulate
+    from sicomat.motion.setpoints import trapezoid_profile
+    from sicomat.servo.loop import build_servo_loop
+
+    machine = load_model(GANTRY, ["robot.frames.4.FS=30 N*m"])
+    loop = build_servo_loop(machine, "X1")
+    link = {f.name: f for f in loop.mechanics.frictions}["yaw_friction"]
+    L = machine.robot.frames[2].d
+    np.testing.assert_allclose(link.g, np.array([1.0, 1.0, -1.0, 0.0]) / L, rtol=0, atol=REL)   # X1, s1, s2, sY
+    run = simulate(loop, trapezoid_profile(0.02, 0.3, 3.0), 0.3)
+    rate = sum(g * run.signals[dof.velocity] for g, dof in zip(link.g, loop.mechanics.dofs))
+    force = run.signals["friction.yaw_friction"]
+    assert np.abs(force).max() <= 30.0 * (1 + 1e-12)
+    sliding = np.abs(rate) > 1e-3 * np.abs(rate).max()
+    assert sliding.sum() > 100                               # the move's ramps and cruise
+    np.testing.assert_allclose(force[sliding], -30.0 * np.sign(rate[sliding]), rtol=1e-12)
+
+
 def test_closed_loop_inverse_dynamics_with_elastic_joints_against_dalembert():
     """At random skewed states with every coordinate moving: the generalised forces on the six independent
     joints (motors and screw deflections) against virtual work on the closed-form kinematics,
