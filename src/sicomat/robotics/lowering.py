@@ -321,7 +321,10 @@ def axis_mechanics(machine: "Machine", axis: str | None = None) -> Mechanics:
     its configuration with the other motorised joints locked (held by their servo loops, taken as rigid),
     the elastic joints free and gravity compensated by the controller — the decoupled model each axis is
     tuned on (with gravity, a joint whose motor is free is an inverted pendulum the loop must hold, and its
-    gravity torque a load the integral action or a feedforward carries; ``docs/robotics.md``)."""
+    gravity torque a load the integral action or a feedforward carries; ``docs/robotics.md``). With closed
+    loops the same rule holds in the independent coordinates: on a gantry, the model of drive X1 locks the
+    other drive X2 of the same machine axis (held by its own loop), a stiffer model than both moving together
+    (``sicomat.servo.coupled.robot_coupled_loop``)."""
     from ..mechanics.conditioning import check_resolvable
     from ..mechanics.lumped import check_axis_mechanics
 
