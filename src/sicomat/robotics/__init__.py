@@ -13,7 +13,8 @@ from .elastic import (HybridDynamics, elastic_direct_dynamics, elastic_joints, e
                       rigid_joints)
 from .geometry import jacobian, transform, transforms
 from .loops import (active_joints, closed_loop_inertia_matrix, closed_loop_inverse_dynamics, closure_error,
-                    constraint_jacobian, loop_frames, loop_jacobian, loop_states, passive_joints, solve_closure)
+                    constraint_jacobian, independent_jacobian, independent_joints, loop_frames, loop_jacobian,
+                    loop_states, passive_joints, solve_closure)
 from .table import FRAME_FIELDS, PARAMETER_FIELDS, MDHRobot
 
 if TYPE_CHECKING:
@@ -47,11 +48,13 @@ __all__ = [
     "rigid_joints",
     "loop_frames",
     "active_joints",
+    "independent_joints",
     "passive_joints",
     "closure_error",
     "loop_jacobian",
     "solve_closure",
     "constraint_jacobian",
+    "independent_jacobian",
     "loop_states",
     "closed_loop_inverse_dynamics",
     "closed_loop_inertia_matrix",

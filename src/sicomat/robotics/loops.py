@@ -4,22 +4,27 @@ closure equations, their solution for the passive joints, and the closed-loop dy
 A robot with ``links = NL`` (:meth:`MDHRobot.from_table`) is a tree of NL links plus B loops, each cut at
 one joint: cut frame k (NL < k <= NL + B) is that joint, on link ``ant(k)``, and its closing frame
 k + B is fixed on the other link. The loop is closed when ``0T_k(q) = 0T_{k+B}(q)``. The joint variables
-``q`` are those of the tree and of the cut joints; the **active** ones are the motorised joints
-(``mu = 1``), every other joint is **passive**, found from the active ones by the closure.
+``q`` are those of the tree and of the cut joints. The **independent** ones are the motorised joints
+(``mu = 1``, the **active** ones: a motor drives them) and the elastic joints (``eta = 1``: a spring's
+deflection, a state of its own); every other joint is **passive**, found from the independent ones by
+the closure. Without elastic joints the independent joints are the active ones.
 
 Dynamics (notes §1.3): the tree (the cut and closing frames carry no link) has torques ``Gamma_tr``
 (:func:`~sicomat.robotics.dynamics.inverse_dynamics` at consistent ``q, qd, qdd``) and inertia matrix
-``A_tr``; with ``G = dq/dq_a`` (identity rows for the active joints, ``dq_p/dq_a`` for the passive ones)
-the motors' torques are ``Gamma_a = Gamma_tr,a + (dq_p/dq_a)^T Gamma_tr,p = G^T Gamma_tr`` and the
-closed loop's inertia matrix ``G^T A_tr G``: the principle of virtual work, ``Gamma_a . dq_a = Gamma_tr . dq``
-for every consistent ``dq = G dq_a`` (the closure's reaction forces do no work).
+``A_tr``; with ``G = dq/dq_i`` (identity rows for the independent joints, ``dq_p/dq_i`` for the passive
+ones) the generalised forces on the independent coordinates are ``Gamma_i = G^T Gamma_tr`` and the closed
+loop's inertia matrix is ``G^T A_tr G``: the principle of virtual work, ``Gamma_i . dq_i = Gamma_tr . dq``
+for every consistent ``dq = G dq_i`` (the closure's reaction forces do no work). On a motorised row
+``Gamma_i`` is the motor's torque; on an elastic row it is what the spring must supply,
+``Gamma_i,e = -k q_e`` on a motion of the machine (the elastic joint's equation, as in the tree's hybrid
+model, :mod:`sicomat.robotics.elastic`).
 
 Closure error of loop l: ``[P_k - P_{k+B}; rotvec(R_k R_{k+B}^T)]`` in the base frame (m, rad). Its
 derivative along a motion is ``(J_k - J_{k+B}) qd`` (the frames' Jacobians; exact for the position rows,
 and for the rotation rows where the loop is closed), the loop Jacobian used by Newton and by ``G``.
 A planar loop gives only 3 independent rows of 6: the passive joints are found by least squares, and
 are determined when the passive columns of the loop Jacobian have full rank (else: a singular
-configuration, ``ModelError``). Elastic joints inside closed-loop robots are not supported here.
+configuration, ``ModelError``).
 """
 
 from __future__ import annotations
@@ -36,8 +41,9 @@ from .geometry import _global, jacobian, joint_states
 if TYPE_CHECKING:
     from .table import MDHRobot
 
-__all__ = ["loop_frames", "active_joints", "passive_joints", "closure_error", "loop_jacobian", "solve_closure",
-           "constraint_jacobian", "loop_states", "closed_loop_inverse_dynamics", "closed_loop_inertia_matrix"]
+__all__ = ["loop_frames", "active_joints", "independent_joints", "passive_joints", "closure_error", "loop_jacobian",
+           "solve_closure", "constraint_jacobian", "independent_jacobian", "loop_states",
+           "closed_loop_inverse_dynamics", "closed_loop_inertia_matrix"]
 
 # A passive column of the loop Jacobian whose singular value is below this fraction of the largest is
 # a lost degree of freedom: the singular values of a regular configuration are of the order of the
@@ -59,9 +65,18 @@ def active_joints(robot: "MDHRobot") -> np.ndarray:
     return np.flatnonzero(robot.mu[robot.joint_frames] == 1)
 
 
+def independent_joints(robot: "MDHRobot") -> np.ndarray:
+    """Indices in ``q`` of the independent joints: the motorised (``mu = 1``) and the elastic (``eta = 1``)
+    ones, in joint order; the active joints when there is no elastic joint."""
+    rows = robot.joint_frames
+    return np.flatnonzero((robot.mu[rows] == 1) | (robot.eta[rows] == 1))
+
+
 def passive_joints(robot: "MDHRobot") -> np.ndarray:
-    """Indices in ``q`` of the passive joints (``mu = 0``: tree joints without a motor and the cut joints)."""
-    return np.flatnonzero(robot.mu[robot.joint_frames] == 0)
+    """Indices in ``q`` of the passive joints (``mu = eta = 0``: tree joints without a motor or a spring, and
+    the cut joints), found by the closure."""
+    rows = robot.joint_frames
+    return np.flatnonzero((robot.mu[rows] == 0) & (robot.eta[rows] == 0))
 
 
 def _size(robot: "MDHRobot") -> float:
@@ -79,14 +94,9 @@ def _one(robot: "MDHRobot", x: Any, name: str) -> np.ndarray:
 def _vector(x: Any, size: int, name: str) -> np.ndarray:
     array = np.asarray(x, dtype=float)
     if array.shape != (size,) or not np.all(np.isfinite(array)):
-        raise ModelError(f"{name} must hold {size} finite values (one per active joint, joint order), got "
-                         f"shape {np.shape(x)}", path=name)
+        raise ModelError(f"{name} must hold {size} finite values (one per independent joint: motorised or "
+                         f"elastic, joint order), got shape {np.shape(x)}", path=name)
     return array
-
-
-def _check_supported(robot: "MDHRobot") -> None:
-    if np.any(robot.eta[robot.joint_frames] == 1):
-        raise ModelError("closed-loop models with elastic joints (eta = 1) are not built", path="frames")
 
 
 def closure_error(robot: "MDHRobot", q: Any) -> np.ndarray:
@@ -125,8 +135,9 @@ def solve_closure(robot: "MDHRobot", q_active: Any, q_guess: Any, *, tol: float 
 
     Parameters
     ----------
-    q_active : array_like, shape (n_a,)
-        The active joints' positions (joint order).
+    q_active : array_like, shape (n_i,)
+        The independent joints' positions (:func:`independent_joints`: motorised and elastic, joint order;
+        the active joints' when there is no elastic joint).
     q_guess : array_like, shape (n,)
         A start for every joint; its active entries are replaced. Newton finds the closure nearest to it
         (the assembly mode, e.g. which way a four-bar's elbow points, is chosen by the guess).
@@ -141,8 +152,7 @@ def solve_closure(robot: "MDHRobot", q_active: Any, q_guess: Any, *, tol: float 
     ModelError
         At a singular configuration (see :func:`constraint_jacobian`).
     """
-    _check_supported(robot)
-    a, p = active_joints(robot), passive_joints(robot)
+    a, p = independent_joints(robot), passive_joints(robot)
     q = _one(robot, q_guess, "q_guess").copy()
     q[a] = _vector(q_active, len(a), "q_active")
     target = tol * _size(robot)
@@ -162,33 +172,38 @@ def _check_closed(robot: "MDHRobot", q: np.ndarray) -> None:
 
 
 def constraint_jacobian(robot: "MDHRobot", q: Any) -> np.ndarray:
-    """``dq_p/dq_a`` (n_p x n_a) at a closed configuration: ``J_p dq_p + J_a dq_a = 0`` solved for the
-    passive joints (least squares, exact when the loops are closed)."""
-    _check_supported(robot)
+    """``dq_p/dq_i`` (n_p x n_i) at a closed configuration: ``J_p dq_p + J_i dq_i = 0`` solved for the
+    passive joints (least squares, exact when the loops are closed); ``dq_p/dq_a`` without elastic joints."""
     q_ = _one(robot, q, "q")
     _check_closed(robot, q_)
     j = loop_jacobian(robot, q_)
-    return _passive_solve(j[:, passive_joints(robot)], -j[:, active_joints(robot)])
+    return _passive_solve(j[:, passive_joints(robot)], -j[:, independent_joints(robot)])
 
 
-def _g(robot: "MDHRobot", q: np.ndarray) -> np.ndarray:
-    """``G = dq/dq_a`` (n x n_a)."""
-    a, p = active_joints(robot), passive_joints(robot)
+def independent_jacobian(robot: "MDHRobot", q: Any) -> np.ndarray:
+    """``G = dq/dq_i`` (n x n_i) at a closed configuration: identity rows for the independent joints,
+    :func:`constraint_jacobian` for the passive ones. A joint's velocity is ``G[j] @ qd_i``; a sum of joint
+    variables (a sensor) moves by the sum of their rows."""
+    a, p = independent_joints(robot), passive_joints(robot)
     g = np.zeros((robot.n_joints, len(a)))
     g[a, np.arange(len(a))] = 1.0
     g[p] = constraint_jacobian(robot, q)
     return g
 
 
-def loop_states(robot: "MDHRobot", q: Any, qd_active: Any, qdd_active: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The speeds and accelerations of all joints (n,) consistent with the loops at a closed ``q``.
 
-    ``qd = G qd_a``; ``qdd_p`` from the closure's second derivative ``J qdd + a_rel(q, qd) = 0``, where
+
+
+def loop_states(robot: "MDHRobot", q: Any, qd_active: Any, qdd_active: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The speeds and accelerations of all joints (n,) consistent with the loops at a closed ``q``, the
+    independent joints' given (``qd_active``, ``qdd_active``: (n_i,), joint order).
+
+    ``qd = G qd_i``; ``qdd_p`` from the closure's second derivative ``J qdd + a_rel(q, qd) = 0``, where
     ``a_rel`` is the relative acceleration of the cut and closing frames at ``qdd = 0`` (origins' linear
     and frames' angular accelerations, Newton–Euler's forward pass without gravity)."""
     q_ = _one(robot, q, "q")
-    a, p = active_joints(robot), passive_joints(robot)
-    g = _g(robot, q_)
+    a, p = independent_joints(robot), passive_joints(robot)
+    g = independent_jacobian(robot, q_)
     qd = g @ _vector(qd_active, len(a), "qd_active")
     _, _, _, wd, vd = _forward(robot, q_[None], qd[None], np.zeros((1, robot.n_joints)), np.zeros(3))
     rot = _global(robot, q_[None])[0][0]
@@ -203,15 +218,17 @@ def loop_states(robot: "MDHRobot", q: Any, qd_active: Any, qdd_active: Any) -> t
 
 
 def closed_loop_inverse_dynamics(robot: "MDHRobot", q: Any, qd: Any, qdd: Any) -> np.ndarray:
-    """The active joints' torques (n_a,) ``Gamma_a = Gamma_tr,a + (dq_p/dq_a)^T Gamma_tr,p`` at a consistent
-    state of all joints (``q`` closed, ``qd``, ``qdd`` from :func:`loop_states`)."""
+    """The generalised forces on the independent joints (n_i,) ``Gamma_i = Gamma_tr,i + (dq_p/dq_i)^T
+    Gamma_tr,p`` at a consistent state of all joints (``q`` closed, ``qd``, ``qdd`` from :func:`loop_states`):
+    the motors' torques on the motorised rows; on an elastic row the force the spring must supply (the
+    machine moves so when it equals ``-k q_e``). Without elastic joints: the active joints' torques."""
     q_ = _one(robot, q, "q")
-    g = _g(robot, q_)
+    g = independent_jacobian(robot, q_)
     return g.T @ inverse_dynamics(robot, q_, qd, qdd)
 
 
 def closed_loop_inertia_matrix(robot: "MDHRobot", q: Any) -> np.ndarray:
-    """The closed loop's inertia matrix ``G^T A_tr G`` (n_a x n_a) at a closed ``q``."""
+    """The closed loop's inertia matrix ``G^T A_tr G`` (n_i x n_i) in the independent joints, at a closed ``q``."""
     q_ = _one(robot, q, "q")
-    g = _g(robot, q_)
+    g = independent_jacobian(robot, q_)
     return g.T @ inertia_matrix(robot, q_) @ g

@@ -90,13 +90,13 @@ def inverse_dynamics_payload(machine: "Machine", q: Any, qd: Any, qdd: Any) -> d
 def locked_modes(machine: "Machine", q: Any = None) -> tuple["ModalResult", dict[str, Any]]:
     """The modes of the robot at configuration ``q`` (default: the file's) with every motorised joint
     locked: the structure's own modes, those of its elastic joints. Returns the result and what it was
-    computed at (``configuration`` by joint name, ``locked`` joints)."""
+    computed at (``configuration`` by joint name, closed when the robot has loops; ``locked`` joints)."""
     from ..mechanics.conditioning import check_resolvable
     from ..mechanics.modal import modal_analysis
-    from ..robotics.lowering import axis_free_joints, configuration, robot_mechanics
+    from ..robotics.lowering import axis_free_joints, closed_configuration, robot_mechanics
 
     spec = robot_of(machine)
-    q0 = configuration(spec, None if q is None else joint_values(spec, q, "q"))
+    q0 = closed_configuration(spec, None if q is None else joint_values(spec, q, "q"))
     free = axis_free_joints(spec, None)
     if not free:
         raise ModelError("the robot has no joint left once its motors are locked (no elastic joint): it has no "
