@@ -19,7 +19,7 @@ from sicomat.cli.main import app
 from sicomat.io import machine_from_dict
 from sicomat.motion.setpoints import trapezoid_profile
 from sicomat.robotics import MDHRobot
-from sicomat.robotics.lowering import rigid_body_dynamics, tool_point
+from sicomat.robotics.path_model import rigid_body_dynamics, tool_point
 from sicomat.servo.coupled import robot_coupled_loop
 from sicomat.simulation.coupled import coupled_run_program
 from sicomat.simulation.kernel import run

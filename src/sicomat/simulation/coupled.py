@@ -20,7 +20,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..progress import ProgressCallback
     from ..servo.coupled import CoupledLoop
     from ..servo.program import HybridProgram
-    from ..robotics.lowering import RigidBodyDynamics
+    from ..robotics.path_model import RigidBodyDynamics
     from .kernel import KernelResult
 
 __all__ = ["CoupledRun", "coupled_run_program", "simulate_coupled"]
@@ -97,14 +97,14 @@ def simulate_coupled(coupled: "CoupledLoop", profiles: Mapping[str, "SetpointPro
     progress : callable, optional
         Told the phases, as :func:`sicomat.simulate` does.
     dynamics : RigidBodyDynamics, optional
-        A robot's rigid-body dynamics (:func:`sicomat.robotics.lowering.rigid_body_dynamics`, about the
+        A robot's rigid-body dynamics (:func:`sicomat.robotics.path_model.rigid_body_dynamics`, about the
         configuration ``coupled.mechanics`` was linearised at, every joint free): the run then advances
         the mechanics with the robot's nonlinear dynamics (large motions,
         :mod:`sicomat.simulation.nonlinear`) instead of the linear model. ``info["engine"]`` says which.
     tool_positions : callable, optional
         The axes' tool coordinates from the joint displacements ``δq`` (n_steps, n): a mapping of axis to
         (n_steps,) that replaces those axes' ``tool.position`` (and so ``tool_error``) — for a large motion,
-        the tool point by the robot's geometric model (:meth:`sicomat.robotics.lowering.ToolPoint.coordinates`)
+        the tool point by the robot's geometric model (:meth:`sicomat.robotics.path_model.ToolPoint.coordinates`)
         rather than the linear tool vectors.
 
     Returns

@@ -36,7 +36,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import ModelError
-from ..robotics.lowering import RigidBodyDynamics
+from ..robotics.path_model import RigidBodyDynamics
 from ..robotics._kernels import _crba_one, _local, flat_arrays, mass_and_bias
 from ..servo.program import HybridProgram
 from .kernel import (DIVERGENCE_WARMUP, KernelResult, _check_run_args, _divergence_args, _diverged,

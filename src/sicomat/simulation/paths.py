@@ -180,7 +180,7 @@ def simulate_path(machine: "Machine", samples: "PathSamples", *, settle: float =
     robot machine, its decoupled linearisation: the other motors locked) and reads its tool sensor;
     ``"coupled"`` (a ``[robot]`` machine) simulates every axis's loop together on the robot's coupled
     linearisation at its configuration, the axes the path does not move holding their position, and
-    reads the tool point's path coordinates (:class:`sicomat.robotics.lowering.ToolPoint`, linearised);
+    reads the tool point's path coordinates (:class:`sicomat.robotics.path_model.ToolPoint`, linearised);
     ``"nonlinear"`` the same loops on the robot's nonlinear dynamics (large motions:
     :mod:`sicomat.simulation.nonlinear`), the tool point by the geometric model. The path starts at the
     configuration.
@@ -246,7 +246,7 @@ def _coupled_runs(machine: "Machine", samples: "PathSamples", mapping: dict[str,
                   ) -> tuple[dict[str, "TimeSeries"], dict[str, Verdict], float]:
     """The path axes' series of one coupled run of every axis of a robot machine (see :func:`simulate_path`)."""
     from ..motion.setpoints import step_profile
-    from ..robotics.lowering import rigid_body_dynamics, tool_point
+    from ..robotics.path_model import rigid_body_dynamics, tool_point
     from ..servo.coupled import CoupledLoop, robot_coupled_loop
     from .checks import simulation_verdict
     from .coupled import simulate_coupled
