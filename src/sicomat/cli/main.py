@@ -495,12 +495,13 @@ def circle(model: Path = ModelArgument,
                                                           "feedforward on every axis."),
            magnification: Optional[float] = typer.Option(None, "--magnification", callback=number(gt=0),
                                                          help="Scale of the deviation in the polar plot."),
-           circle_model: Optional[str] = typer.Option(None, "--model", metavar="decoupled|coupled|nonlinear",
-                                                      help="The model whose figures are reported, on a [robot] "
-                                                           "machine (default nonlinear); all three are compared."),
+           circle_model: Optional[str] = typer.Option(None, "--model", metavar="MODEL",
+                                                      help="decoupled, coupled or nonlinear: the model whose "
+                                                           "figures are reported on a \\[robot] machine (default "
+                                                           "nonlinear); the three are compared."),
            set_: Optional[List[str]] = SetOption, json_: bool = JsonOption, plot: Optional[Path] = PlotOption) -> None:
     """ISO 230-4 circle test (ballbar) on the X and Y axes: circular and radial deviation, reversal spikes,
-    servo mismatch; on a [robot] machine also what the coupling of the axes adds (decoupled, coupled and
+    servo mismatch; on a \\[robot] machine also what the coupling of the axes adds (decoupled, coupled and
     nonlinear models compared)."""
     with guarded(model):
         from ..errors import ModelError
