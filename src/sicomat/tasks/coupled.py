@@ -158,7 +158,7 @@ def simulate_coupled_move(machine, axis: str | None, step_mm: float | None, move
     from ..simulation.coupled import simulate_coupled
     from ..simulation.kernel import SimulationDiverged
     from ..simulation.timeseries import StepMetrics
-    from .simulate import choose_profile, diverged_payload, simulate_payload
+    from .simulate import STEP_FIGURES, choose_profile, diverged_payload, simulate_payload
 
     coupled = coupled_loops(machine)
     name = machine.axis_name(axis)
@@ -182,6 +182,10 @@ def simulate_coupled_move(machine, axis: str | None, step_mm: float | None, move
                    "axes": {other: dict(figures) for other in coupled.axes}}
         return payload, None
     verdict = coupled_simulation_verdict(coupled, run, profiles)
-    payload = {**simulate_payload(run[name], verdict), "coupled": True,
-               "axes": {other: run[other].metrics.to_dict() for other in coupled.axes}}  # type: ignore[union-attr]
-    return payload, run
+    axes = {}
+    for other in coupled.axes:
+        figures = run[other].metrics.to_dict()  # type: ignore[union-attr]
+        if verdict.stable is False:             # an unstable loop's step figures mean nothing (as simulate's)
+            figures.update({key: None for key in STEP_FIGURES})
+        axes[other] = figures
+    return {**simulate_payload(run[name], verdict), "coupled": True, "axes": axes}, run
