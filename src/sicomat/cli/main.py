@@ -233,6 +233,9 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
         if coupled:
             from ..tasks.coupled import simulate_coupled_move
 
+            if step is None and move is None and machine.axes[machine.axis_name(axis)].trajectory is None:
+                raise ModelError("no setpoint: give --step MM or --move MM, or add a [axes.<name>.trajectory] table",
+                                 source="options")
             with progress_bar() as progress:
                 payload, run = simulate_coupled_move(machine, axis, step, move, max_velocity, max_acceleration,
                                                      duration, nonlinear=not linear, progress=progress)

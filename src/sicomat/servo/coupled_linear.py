@@ -78,8 +78,8 @@ class CoupledAxisModel(LoopModel):
             raise ModelError(f"the position loop of axis {loop.axis} with the other loops closed needs every "
                              f"position loop slower than the velocity period ({loop.controller.velocity_period:g} "
                              f"s) at its own period: {listed} (sampled at another period, the loop is periodic, "
-                             f"not LTI, and has no exact frequency response)", path="loops",
-                             value=other[0][0])
+                             f"not LTI, and has no exact frequency response)",
+                             path=f"axes.{other[0][0]}.controller.position_period", value=other[0][1])
         A, B, C = self.velocity_closed_loop(Kp, Ti)
         Ap, Bp = lifted(A, B, loop.position_ratio)
         n = Ap.shape[0]
