@@ -321,3 +321,19 @@ def print_reduction(payload: dict[str, Any]) -> None:
     console.print("  frequencies of the reduced model (Hz): " + ", ".join(f"{f:.4g}" for f in freqs))
     if payload.get("written"):
         console.print(f"  written: {payload['written']}")
+
+
+def print_coupled_axes(payload: dict[str, Any]) -> None:
+    """Print each axis's figures of ``sicomat simulate --coupled`` (the moving one and those holding)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"coupled axes: axis {payload['axis']} moves, the others hold their position",
+                  title_justify="left")
+    table.add_column("axis")
+    for col in ("max following error µm", "rms µm", "final µm"):
+        table.add_column(col, justify="right")
+    for axis, figures in payload["axes"].items():
+        table.add_row(axis, *("-" if figures[key] is None else f"{figures[key] * 1e6:.4g}"
+                              for key in ("max_following_error", "rms_following_error", "final_error")))
+    print_table(Console(highlight=False), table)

@@ -17,7 +17,7 @@ continuous closed velocity loop at Tp; a continuous position loop is evaluated a
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
 
@@ -36,10 +36,15 @@ LOOPS = ("plant", "velocity-open", "velocity-closed", "position-open", "position
          "following-error", "compliance", "disturbance")
 
 
-def default_omega(loop: "ServoLoop", which: str, n: int = 2000) -> np.ndarray:
+def default_omega(loop: "ServoLoop", which: str, n: int = 2000, *,
+                  resonances: "Iterable[tuple[float, float]] | None" = None) -> np.ndarray:
     """A log grid from 0.5 Hz to just below the Nyquist frequency of the loop ``which`` belongs to,
     refined around every lightly damped mode of the mechanics (±50 half-power bandwidths), so that
-    resonance peaks and their loops on a Nichols chart are resolved whatever their damping."""
+    resonance peaks and their loops on a Nichols chart are resolved whatever their damping.
+
+    ``resonances``: the ``(ω rad/s, damping ratio)`` of the resonances to refine around, instead of the
+    flexible modes of ``loop.mechanics`` (coupled loops: those of the coupled mechanics and of the
+    loop with the other axes closed)."""
     ctrl = loop.controller
     period: float | None
     if which.startswith(("position", "following")) and ctrl.position_loop == "discrete":
@@ -51,11 +56,13 @@ def default_omega(loop: "ServoLoop", which: str, n: int = 2000) -> np.ndarray:
     low = 2 * np.pi * 0.5
     grid = [np.logspace(np.log10(low), np.log10(top), n)]
     offsets = np.concatenate([-np.geomspace(50, 0.02, 24), [0.0], np.geomspace(0.02, 50, 24)])
-    for mode in loop.mechanics.modes().modes:
-        if mode.rigid or mode.damping_ratio >= 0.2:
+    if resonances is None:
+        resonances = [(2 * np.pi * mode.frequency_hz, mode.damping_ratio)
+                      for mode in loop.mechanics.modes().modes if not mode.rigid]
+    for w, damping in resonances:
+        if damping >= 0.2:
             continue
-        w = 2 * np.pi * mode.frequency_hz
-        half = w * max(mode.damping_ratio, 1e-7)
+        half = w * max(damping, 1e-7)
         ws = 2 * np.pi / ctrl.velocity_period
         folded = abs(w - ws * np.round(w / ws))  # a sampled loop sees a mode above Nyquist aliased
         for centre in ({w, folded} if ctrl.velocity_loop == "discrete" else {w}):

@@ -9,7 +9,7 @@ from .base import new_figure
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-__all__ = ["plot_timeseries", "plot_step", "signal_unit"]
+__all__ = ["plot_timeseries", "plot_step", "signal_unit", "plot_following_errors"]
 
 
 def plot_timeseries(series, signals=None) -> "Figure":
@@ -71,4 +71,17 @@ def plot_step(response, title: str = "step response") -> "Figure":
     ax.grid(True, alpha=0.3)
     rise = "-" if response.rise_time is None else f"{response.rise_time * 1e3:.3g} ms"
     ax.set_title(f"{title}: overshoot {response.overshoot_percent:.3g} %, rise time {rise}", fontsize=10)
+    return fig
+
+
+def plot_following_errors(errors) -> "Figure":
+    """The following error (µm) of several axes against time, one panel per axis (a coupled run:
+    ``{axis: (time, following_error)}``)."""
+    fig = new_figure(figsize=(8, 1.9 * len(errors) + 0.8))
+    axes = fig.subplots(len(errors), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (name, (time, error)) in zip(axes, errors.items()):
+        ax.plot(time, error * 1e6, linewidth=1.0)
+        ax.set_ylabel(f"{name} following\nerror (µm)", fontsize=8)
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("time (s)")
     return fig

@@ -22,7 +22,7 @@ from ..lti.response import zoh_matrices
 if TYPE_CHECKING:  # pragma: no cover
     from .loop import ServoLoop
 
-__all__ = ["LoopModel"]
+__all__ = ["LoopModel", "lifted"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,19 +80,54 @@ class LoopModel:
         """State space at Tv of the closed velocity loop: inputs (velocity command, feedforward
         effort), outputs (measured position in axis units, measured velocity). The velocity law is
         the controller kind's lowering (:func:`~sicomat.servo.blocks.linear_law`); ``error_form``:
-        seen from the error only (the loop gain's closed loop)."""
-        loop, ctrl = self.loop, self.loop.controller
-        T = ctrl.velocity_period
-        current, velocity = self._blocks()
+        seen from the error only (the loop gain's closed loop). Further inputs of the sampled plant
+        (``Gamma``'s columns after the first: the commands of a coupled axis's partners) are further
+        inputs of the closed loop."""
+        loop = self.loop
+        blocks = self._blocks()
         law = linear_law(loop, Kp, Ti, error_form=error_form)
-        nl = law.A.shape[0]
-        capacity = self.Phi.shape[0] + 1 + nl + 2 * (len(current) + 1) + ctrl.velocity_delay
+        extra = self.Gamma.shape[1] - 1
+        b = _Builder(self.Phi.shape[0] + self.controller_states(law, blocks), n_inputs=2 + extra)
+        x = b.block(self.Phi.shape[0])
+        signal, position, v_meas = self.close_velocity(b, x, law, blocks, b.input(0), b.input(1))
+        for i in range(self.Phi.shape[0]):
+            value = b.row(x, self.Phi[i]) + signal * self.Gamma[i, 0]
+            for j in range(extra):
+                value = value + b.input(2 + j) * self.Gamma[i, 1 + j]
+            b.next(x, i, value)
+        A, B = b.matrices()
+        n = A.shape[0]
+        C = np.vstack([position.sx[:n], v_meas.sx[:n]])
+        D = np.vstack([position.su, v_meas.su])
+        if np.any(D):
+            raise RuntimeError("the sampled measurements have no direct feedthrough")  # pragma: no cover
+        return A, B, C
+
+    def controller_states(self, law: DiscreteSS, blocks: tuple[list[DiscreteSS], DiscreteSS | None]) -> int:
+        """At most how many states :meth:`close_velocity` adds to the plant's (checked against the
+        memory budget)."""
+        ctrl = self.loop.controller
+        capacity = 1 + law.A.shape[0] + 2 * (len(blocks[0]) + 1) + ctrl.velocity_delay
         from ..budget import require_dense
 
-        require_dense(capacity, "this analysis of the sampled velocity loop",
+        require_dense(self.Phi.shape[0] + capacity, "this analysis of the sampled velocity loop",
                       f"one per sample of the velocity_delay of {ctrl.velocity_delay}")
-        b = _Builder(capacity, n_inputs=2)
-        x = b.block(self.Phi.shape[0])
+        return capacity
+
+    def close_velocity(self, b: "_Builder", x: slice, law: DiscreteSS,
+                       blocks: tuple[list[DiscreteSS], DiscreteSS | None], command: "_Affine",
+                       feedforward: "_Affine") -> tuple["_Affine", "_Affine", "_Affine"]:
+        """The sampled velocity loop's controller appended to the builder ``b`` whose block ``x`` holds
+        the plant's states (the sensors read as ``c_pos``, ``c_vel`` from it): the differencing, the
+        filters, the law (:func:`~sicomat.servo.blocks.linear_law`, ``law``), the current filters and
+        the computation delay, from the velocity ``command`` and the ``feedforward`` effort. Returns
+        the drive's current reference (the plant's input), the measured position (axis units) and the
+        measured velocity — the one lowering of a velocity loop's linear part, for one axis
+        (:meth:`velocity_closed_loop`) or each of coupled axes
+        (:func:`~sicomat.servo.coupled_linear.coupled_axis_model`)."""
+        loop, ctrl = self.loop, self.loop.controller
+        T = ctrl.velocity_period
+        current, velocity = blocks
         pos_raw = b.row(x, self.c_pos)
         vs_raw = b.row(x, self.c_vel)
         if self.differenced:
@@ -102,9 +137,9 @@ class LoopModel:
         else:
             v_raw = vs_raw * (1.0 / loop.velocity_gain)
         v_meas = b.apply(velocity, v_raw) if velocity is not None else v_raw
-        error = b.input(0) - v_meas
+        error = command - v_meas
         effort = b.apply2(law, error, v_meas)
-        signal = (effort + b.input(1)) * (1.0 / loop.drive.kt)
+        signal = (effort + feedforward) * (1.0 / loop.drive.kt)
         for block in current:
             signal = b.apply(block, signal)
         if ctrl.velocity_delay:
@@ -113,15 +148,7 @@ class LoopModel:
             for j in range(1, ctrl.velocity_delay):
                 b.next(line, j, b.state(line, j - 1))
             signal = b.state(line, ctrl.velocity_delay - 1)
-        for i in range(self.Phi.shape[0]):
-            b.next(x, i, b.row(x, self.Phi[i]) + signal * self.Gamma[i, 0])
-        A, B = b.matrices()
-        n = A.shape[0]
-        C = np.vstack([(pos_raw * (1.0 / loop.position_gain)).sx[:n], v_meas.sx[:n]])
-        D = np.vstack([(pos_raw * (1.0 / loop.position_gain)).su, v_meas.su])
-        if np.any(D):
-            raise RuntimeError("the sampled measurements have no direct feedthrough")  # pragma: no cover
-        return A, B, C
+        return signal, pos_raw * (1.0 / loop.position_gain), v_meas
 
     def position_model(self, Kp: float, Ti: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The closed velocity loop as an exact LTI system at Tp: inputs (velocity command,
@@ -132,12 +159,19 @@ class LoopModel:
             Ap, Bp = zoh_matrices(A, B, self.loop.controller.position_period)
             return Ap, Bp, C
         A, B, C = self.velocity_closed_loop(Kp, Ti)
-        Bp = np.zeros_like(B)
-        power = np.eye(A.shape[0])
-        for _ in range(self.loop.position_ratio):
-            Bp += power @ B
-            power = power @ A
-        return np.linalg.matrix_power(A, self.loop.position_ratio), Bp, C
+        Ap, Bp = lifted(A, B, self.loop.position_ratio)
+        return Ap, Bp, C
+
+
+def lifted(A: np.ndarray, B: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """A discrete system with its input held over ``steps`` periods, sampled every ``steps`` periods:
+    ``(A^steps, Σ_{i<steps} A^i B)``, exact."""
+    Bp = np.zeros_like(B)
+    power = np.eye(A.shape[0])
+    for _ in range(steps):
+        Bp += power @ B
+        power = power @ A
+    return np.linalg.matrix_power(A, steps), Bp
 
 
 def _filter(spec, period: float, path: str) -> DiscreteSS:

@@ -29,12 +29,16 @@ import numpy as np
 from ..servo.stability import Verdict, loop_verdict
 
 if TYPE_CHECKING:  # pragma: no cover
+    from typing import Mapping
+
+    from ..servo.coupled import CoupledLoop
     from ..servo.loop import ServoLoop
+    from .coupled import CoupledRun
     from .timeseries import TimeSeries
     from .kernel import SimulationDiverged
 
 __all__ = ["TAIL_FRACTION", "SATURATED_FRACTION", "LIMIT_TOLERANCE", "FINAL_ERROR_BAND", "FINAL_ERROR_COUNTS",
-           "simulation_verdict", "diverged_verdict", "limit_cycle_warning", "final_error_warning"]
+           "simulation_verdict", "coupled_simulation_verdict", "diverged_verdict", "limit_cycle_warning", "final_error_warning"]
 
 TAIL_FRACTION = 0.25
 """The tail of a run examined for a limit cycle: its last quarter."""
@@ -55,11 +59,7 @@ def simulation_verdict(loop: "ServoLoop", series: "TimeSeries", profile=None) ->
     unstable even when the linear model is stable; a far final error is a warning only.
     """
     verdict = loop_verdict(loop)
-    duration = float(series.time[-1] + series.info.get("step", 0.0))
-    notes = []
-    if verdict.stable is False:
-        notes.append(f"the run of {duration:.3g} s did not diverge, but its figures are those of an unstable "
-                     "loop (bounded by the drive's limits, or not grown yet)")
+    notes = [] if verdict.stable is not False else [_unstable_run(series)]
     cycle = limit_cycle_warning(series)
     if cycle is not None:
         notes.append(cycle)
@@ -70,9 +70,34 @@ def simulation_verdict(loop: "ServoLoop", series: "TimeSeries", profile=None) ->
     return verdict.with_warnings(notes, unstable=cycle is not None)
 
 
-def diverged_verdict(loop: "ServoLoop", exc: "SimulationDiverged") -> Verdict:
-    """The verdict of a run that diverged: unstable, with the time of the divergence."""
-    verdict = loop_verdict(loop)
+def _unstable_run(series: "TimeSeries") -> str:
+    duration = float(series.time[-1] + series.info.get("step", 0.0))
+    return (f"the run of {duration:.3g} s did not diverge, but its figures are those of an unstable loop (bounded "
+            "by the drive's limits, or not grown yet)")
+
+
+def coupled_simulation_verdict(coupled: "CoupledLoop", run: "CoupledRun", profiles: "Mapping") -> Verdict:
+    """The verdict of a finished run of coupled loops: the poles of the coupled linear loops
+    (:func:`~sicomat.servo.coupled_linear.coupled_verdict`) and what each axis's run shows (a limit cycle,
+    a far final error), each such warning naming its axis."""
+    from ..servo.coupled_linear import coupled_verdict
+
+    verdict = coupled_verdict(coupled)
+    first = run[coupled.axes[0]]
+    notes = [] if verdict.stable is not False else [_unstable_run(first)]
+    cycles = False
+    for loop in coupled.loops:
+        cycle = limit_cycle_warning(run[loop.axis])
+        far = final_error_warning(loop, run[loop.axis], profiles[loop.axis])
+        notes += [f"axis {loop.axis}: {note}" for note in (cycle, far) if note is not None]
+        cycles = cycles or cycle is not None
+    return verdict.with_warnings(notes, unstable=cycles)
+
+
+def diverged_verdict(loop: "ServoLoop", exc: "SimulationDiverged", verdict: Verdict | None = None) -> Verdict:
+    """The verdict of a run that diverged: unstable, with the time of the divergence; from ``verdict``
+    (the poles' verdict; default: those of ``loop``)."""
+    verdict = loop_verdict(loop) if verdict is None else verdict
     return verdict.with_warnings([f"the simulation diverged at t = {exc.time:.6g} s: no figures"], unstable=True)
 
 

@@ -16,6 +16,12 @@ from . import _require_memory, axis_series, named_signals, run_steps, timed_run
 from .timeseries import TimeSeries
 
 if TYPE_CHECKING:  # pragma: no cover
+    import os
+    from pathlib import Path
+
+    import pandas
+    from matplotlib.figure import Figure
+
     from ..motion.setpoints import SetpointProfile
     from ..progress import ProgressCallback
     from ..servo.coupled import CoupledLoop
@@ -49,6 +55,31 @@ class CoupledRun:
 
     def __getitem__(self, axis: str) -> TimeSeries:
         return self.axes[axis]
+
+    def to_pandas(self) -> "pandas.DataFrame":
+        """One DataFrame indexed by time (s): each axis's own signals named ``"<axis>.<signal>"``
+        (``X.following_error``, ``Y.current.applied``), then the coupled mechanics' signals (every dof,
+        sensor and acting friction force) once, under their own names."""
+        import pandas as pd
+
+        shared = set(self.mechanics.names)
+        columns = {f"{axis}.{name}": values for axis, series in self.axes.items()
+                   for name, values in series.signals.items() if name not in shared}
+        columns.update(self.mechanics.signals)
+        return pd.DataFrame(columns, index=pd.Index(self.mechanics.time, name="time"))
+
+    def to_csv(self, path: "str | os.PathLike") -> "Path":
+        """Write :meth:`to_pandas` as CSV (atomically: temporary file, then rename)."""
+        from ..io.csv import write_frame_csv
+
+        return write_frame_csv(self.to_pandas(), path)
+
+    def plot(self) -> "Figure":
+        """The following error of every axis against time, one panel each; returns the Figure."""
+        from ..plots.time import plot_following_errors
+
+        return plot_following_errors({axis: (series.time, series["following_error"])
+                                      for axis, series in self.axes.items()})
 
 
 def coupled_run_program(coupled: "CoupledLoop", profiles: Mapping[str, "SetpointProfile"], duration: float, *,

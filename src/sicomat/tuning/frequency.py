@@ -27,8 +27,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
     from ..progress import ProgressCallback
 
-__all__ = ["TuningTargets", "TuningResult", "equivalent_delay", "require_tunable", "rigid_velocity_pi",
-           "rigid_position_gain", "tune_frequency"]
+__all__ = ["TuningTargets", "TuningResult", "Gains", "Achieved", "equivalent_delay", "require_tunable",
+           "rigid_velocity_pi", "rigid_position_gain", "tune_frequency", "targets_on"]
 
 _DEG = np.pi / 180.0
 
@@ -275,12 +275,13 @@ def _quick_margins(omega: np.ndarray, L: np.ndarray) -> _Quick:
 class _Evaluator:
     """Cheap re-evaluation of both loops for trial gains (the plant parts are computed once)."""
 
-    def __init__(self, loop: "ServoLoop", n: int = 1200, progress=None, task: str = "tuning") -> None:
+    def __init__(self, loop: "ServoLoop", n: int = 1200, progress=None, task: str = "tuning", *,
+                 an: LoopAnalysis | None = None, grid=default_omega) -> None:
         self.loop = loop
         self.progress, self.task = progress, task
-        self.an = LoopAnalysis.of(loop)
-        self.omega_v = default_omega(loop, "velocity-open", n)
-        self.omega_p = default_omega(loop, "position-open", n)
+        self.an = LoopAnalysis.of(loop) if an is None else an
+        self.omega_v = grid(loop, "velocity-open", n)
+        self.omega_p = grid(loop, "position-open", n)
         _, integrator, act, meas = self.an.velocity_factors(self.omega_v, 1.0, 1.0)
         self.plant_v = act * meas
         self.integrator = integrator    # the integral part for Kp = Ti = 1: T/(z − 1), or 1/(jω) analog
@@ -414,13 +415,7 @@ def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: flo
     qv = ev.velocity(kp, ti)
     base = ev.position_base(kp, ti)
     kv = _tune_position(ev, base, initial.Kv, targets)
-    qp = ev.position(base, kv)
-    achieved = Achieved(qv.phase_margin, qv.crossover, qv.gain_margin, qp.phase_margin, qp.crossover,
-                        qp.gain_margin, velocity_worst_phase_margin_deg=qv.worst_phase_margin,
-                        velocity_crossovers=qv.n_crossovers,
-                        velocity_bandwidth_rad_s=ev.bandwidth("velocity-open", ev.velocity_gain(kp, ti), kp, ti, kv),
-                        position_bandwidth_rad_s=ev.bandwidth("position-open", kv * base, kp, ti, kv),
-                        position_worst_phase_margin_deg=qp.worst_phase_margin)
+    achieved = _achieved(ev, kp, ti, kv, qv, base)
     from ..servo.stability import loop_verdict
 
     verdict = loop_verdict(loop, Kp=kp, Ti=ti, Kv=kv, an=ev.an)
@@ -429,6 +424,32 @@ def _refine(loop, targets: TuningTargets, initial: Gains, tau: float, start: flo
                         equivalent_delay_s=tau, achieved=achieved, targets_met=not unmet, unmet=tuple(unmet),
                         evaluations=ev.count, wall_time_s=time.perf_counter() - start,
                         stable=verdict.stable, stability_warnings=verdict.warnings)
+
+
+def _achieved(ev: _Evaluator, kp: float, ti: float, kv: float, qv: _Quick, base: np.ndarray) -> Achieved:
+    """What the tuning reports as reached with the gains (the velocity loop's quick margins ``qv`` and the
+    position loop gain for Kv = 1, ``base``, already computed)."""
+    qp = ev.position(base, kv)
+    return Achieved(qv.phase_margin, qv.crossover, qv.gain_margin, qp.phase_margin, qp.crossover,
+                    qp.gain_margin, velocity_worst_phase_margin_deg=qv.worst_phase_margin,
+                    velocity_crossovers=qv.n_crossovers,
+                    velocity_bandwidth_rad_s=ev.bandwidth("velocity-open", ev.velocity_gain(kp, ti), kp, ti, kv),
+                    position_bandwidth_rad_s=ev.bandwidth("position-open", kv * base, kp, ti, kv),
+                    position_worst_phase_margin_deg=qp.worst_phase_margin)
+
+
+def targets_on(an: LoopAnalysis, targets: TuningTargets, gains: Gains, *, grid=default_omega,
+               n: int = 1200) -> tuple[Achieved, list[str]]:
+    """The margins and crossovers the tuning reports (its definitions: the main, lowest, gain crossover;
+    the worst phase margin; the smallest gain margin) of the loops of ``an`` with ``gains``, on the grid
+    ``grid(loop, which, n)``, and the targets they miss (the tuning's tolerances). For another model of
+    the tuned loop: e.g. the coupled one (:func:`sicomat.frequency.coupled.coupled_analysis`, with
+    :func:`~sicomat.frequency.coupled.coupled_omega`'s grid). ``targets`` resolved
+    (:attr:`TuningResult.targets`)."""
+    ev = _Evaluator(an.loop, n, an=an, grid=grid)
+    qv = ev.velocity(gains.Kp, gains.Ti)
+    achieved = _achieved(ev, gains.Kp, gains.Ti, gains.Kv, qv, ev.position_base(gains.Kp, gains.Ti))
+    return achieved, _unmet(targets, achieved)
 
 
 def _tune_position(ev: _Evaluator, base: np.ndarray, kv0: float, t: TuningTargets) -> float:

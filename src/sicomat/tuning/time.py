@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
     from ..progress import ProgressCallback
 
-__all__ = ["TimeTargets", "StepResponse", "TimeTuningResult", "velocity_step", "position_step", "tune_time"]
+__all__ = ["TimeTargets", "StepResponse", "TimeTuningResult", "velocity_step", "position_step", "tune_time", "margin_check"]
 
 
 @dataclass(frozen=True)
@@ -266,7 +266,7 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None, *,
         unmet.append(f"velocity overshoot {vel.overshoot_percent:.3g} % outside {low:g}-{high:g} %")
     if not abs(pos.overshoot_percent - t.position_overshoot) <= max(0.5, t.tolerance):
         unmet.append(f"position overshoot {pos.overshoot_percent:.3g} % instead of {t.position_overshoot:g} %")
-    margins, margin_unmet = _margin_check(an, kp, ti, kv, t)
+    margins, margin_unmet = margin_check(an, kp, ti, kv, t)
     from ..servo.stability import loop_verdict
 
     verdict = loop_verdict(loop, Kp=kp, Ti=ti, Kv=kv, an=an)
@@ -279,9 +279,9 @@ def tune_time(loop: "ServoLoop", targets: TimeTargets | None = None, *,
                             + verdict.warnings)
 
 
-def _margin_check(an: LoopAnalysis, kp: float, ti: float, kv: float, t: TimeTargets) -> tuple[dict[str, float | None], list[str]]:
+def margin_check(an: LoopAnalysis, kp: float, ti: float, kv: float, t: TimeTargets) -> tuple[dict[str, float | None], list[str]]:
     """The tuned loop's margins as ``sicomat margins`` reports them (None: no crossover), and the floors
-    they miss."""
+    they miss; ``an`` the loop's analysis (or another model of it: the coupled one)."""
     from ..frequency.margins import stability_margins
 
     out: dict[str, float | None] = {}
