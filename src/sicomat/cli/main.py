@@ -236,8 +236,10 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
              out: Optional[Path] = typer.Option(None, "--out", help="Write every signal to this CSV file.",
                                                 dir_okay=False),
              coupled: bool = typer.Option(False, "--coupled",
-                                          help="A [robot] machine: move the axis while every other motorised "
-                                               "joint holds its position, all loops on the coupled model."),
+                                          help="A \\[robot] machine: move the axis while every other motorised "
+                                               "joint holds its position, all loops on the coupled model; with "
+                                               "--gcode, the path on the coupled nonlinear dynamics, read at the "
+                                               "tool point."),
              set_: Optional[List[str]] = SetOption, json_: bool = JsonOption,
              plot: Optional[Path] = PlotOption) -> None:
     """Simulate the closed servo loop of an axis (hybrid, multi-rate, exact between samples)."""
@@ -255,10 +257,7 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
             raise ModelError("--gcode cannot be combined with --step or --move", source="options")
         if gcode is None and step is not None and move is not None:
             raise ModelError("give either --step or --move, not both", source="options")
-        if coupled and gcode is not None:
-            raise ModelError("a G-code path on the coupled model is not built yet: leave out --coupled (the axes "
-                             "follow it decoupled) or simulate a --move of one axis with --coupled", source="--coupled")
-        if coupled:
+        if coupled and gcode is None:
             from ..tasks.coupled import simulate_coupled_move
 
             if step is None and move is None and machine.axes[machine.axis_name(axis)].trajectory is None:
@@ -289,7 +288,7 @@ def simulate(model: Path = ModelArgument, axis: Optional[str] = AxisOption,
 
             with progress_bar() as progress:
                 payload, run = simulate_gcode(machine, gcode, feed, step, move, nonlinear=not linear,
-                                              progress=progress)
+                                              progress=progress, model="nonlinear" if coupled else "decoupled")
             if run is not None and out is not None:
                 from ..io.csv import write_frame_csv
 

@@ -75,8 +75,11 @@ def diverged_payload(loop, exc, verdict, notes) -> dict[str, Any]:
             "divergence_time": float(exc.time), **verdict.to_dict()}
 
 
-def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True, progress=None):
-    """Parse a G-code file, interpolate it with the machine's interpolator, simulate the axes it moves.
+def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlinear: bool = True, progress=None,
+                   model: str = "decoupled"):
+    """Parse a G-code file, interpolate it with the machine's interpolator, simulate the axes it moves
+    (``model``: :func:`~sicomat.simulation.paths.simulate_path`'s, ``"nonlinear"`` for ``--coupled``: a path on
+    a robot machine's coupled nonlinear dynamics, read at the tool point).
 
     Returns the ``simulate --gcode --json`` object and the :class:`~sicomat.simulation.paths.PathRun` (None
     when an axis diverged: the payload then has the verdict and no figures)."""
@@ -114,7 +117,7 @@ def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlin
     from ..simulation.kernel import SimulationDiverged
 
     try:
-        run = simulate_path(machine, samples, nonlinear=nonlinear, progress=progress)
+        run = simulate_path(machine, samples, nonlinear=nonlinear, progress=progress, model=model)
     except SimulationDiverged as exc:
         verdict = axes_verdict(machine, path.axis_names).with_warnings([str(exc)], unstable=True)
         return {"max_following_error": None, "rms_following_error": None, "final_error": None,
@@ -123,4 +126,4 @@ def simulate_gcode(machine, gcode_path, feed_mm_min, step_mm, move_mm, *, nonlin
     payload = run.to_dict()
     summary = {key: max((a[key] for a in payload["axes"].values() if a[key] is not None), key=abs)
                for key in ("max_following_error", "rms_following_error", "final_error")}
-    return {**summary, **payload, "diverged": False}, run
+    return {**summary, **payload, "diverged": False, "model": model}, run
