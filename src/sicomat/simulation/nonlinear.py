@@ -90,11 +90,11 @@ def _solve(L, b, n):
 
 
 @njit(cache=True, error_model="numpy")
-def _constrained(mass, L, acc, vel, W, stuck, Y, S, LS, lam, hold, n, project):
-    """With the stuck links' constraints ``W_s x = 0`` (``L`` the Cholesky factor of ``mass``): when
-    ``project`` is False, ``acc <- acc + M⁻¹ W_sᵀ λ`` with ``λ = -(W_s M⁻¹ W_sᵀ)⁻¹ W_s acc`` (the constraint
-    forces, written into ``hold``); when True, ``vel <- vel - M⁻¹ W_sᵀ (W_s M⁻¹ W_sᵀ)⁻¹ W_s vel`` (the
-    M-orthogonal projection: the constraint impulse)."""
+def _constrained(L, x, W, stuck, Y, S, LS, lam, hold, n, project):
+    """``x <- x + M⁻¹ W_sᵀ λ`` with ``λ = -(W_s M⁻¹ W_sᵀ)⁻¹ W_s x``, so that ``W_s x = 0`` for the stuck
+    links' constraint rows ``W_s`` (``L`` the Cholesky factor of M): ``x`` an acceleration, ``λ`` the
+    constraint forces (written into ``hold`` unless ``project``), or ``x`` a velocity (``project``), the
+    M-orthogonal projection: the constraint impulse."""
     nf = W.shape[0]
     m = 0
     for j in range(nf):
@@ -105,7 +105,6 @@ def _constrained(mass, L, acc, vel, W, stuck, Y, S, LS, lam, hold, n, project):
             m += 1
     if m == 0:
         return
-    x = vel if project else acc
     a = 0
     for j in range(nf):
         if stuck[j]:
@@ -167,7 +166,7 @@ def _rhs(z, u, f, stuck, Ax, Bx, Kq, Bq, W, n, q0, ints, geo, chi, grav, zeros, 
                 acc[i] += W[j, i] * f[j]
     _cholesky(mass, L, n)
     _solve(L, acc, n)
-    _constrained(mass, L, acc, acc, W, stuck, Y, S, LS, lam, hold, n, False)
+    _constrained(L, acc, W, stuck, Y, S, LS, lam, hold, n, False)
     for i in range(n):
         out[i] = z[n + i]
         out[n + i] = acc[i]
@@ -183,7 +182,7 @@ def _project(z, stuck, W, n, q0, ints, geo, chi, mass, rot, pos, jp, msp, mp, qa
     mass[:, :] = 0.0
     _crba_one(ints, chi, rot, pos, mass, jp, msp, mp)
     _cholesky(mass, L, n)
-    _constrained(mass, L, z[n:2 * n], z[n:2 * n], W, stuck, Y, S, LS, lam, hold, n, True)
+    _constrained(L, z[n:2 * n], W, stuck, Y, S, LS, lam, hold, n, True)
 
 
 @njit(cache=True, error_model="numpy")
@@ -252,18 +251,16 @@ def _simulate_nonlinear(n_steps, n_sub, limit_abs, limit_factor, warmup,
     k3 = np.zeros(nx)
     k4 = np.zeros(nx)
     zs = np.zeros(nx)
-    any_stuck = False
     for j in range(nf):
         v = 0.0
         for i in range(n):
             v += W[j, i] * z[n + i]
         if v == 0.0:
             stuck[j] = True
-            any_stuck = True
         else:
             dirn[j] = 1.0 if v > 0.0 else -1.0
             f[j] = -coulomb[j] * dirn[j]
-    if any_stuck:
+    if np.any(stuck):
         _project(z, stuck, W, n, q0, ints, geo, chi, mass, rot, pos, jp, msp, mp, qa, L, Y, S, LS, lam, hold)
 
     hs = step / n_sub
@@ -281,7 +278,7 @@ def _simulate_nonlinear(n_steps, n_sub, limit_abs, limit_factor, warmup,
                 s += CD[r, nx + i] * u[i]
             slots[out_slots[r]] = s
         if fr_slots.shape[0] > 0:
-            if any_stuck:
+            if np.any(stuck):
                 _rhs(z, u, f, stuck, Ax, Bx, Kq, Bq, W, n, q0, ints, geo, chi, grav, zeros, mass, bias,
                      rot, pos, w, wd, vd, fa, na, jp, msp, mp, qa, hold, k1, L, Y, S, LS, lam, acc)
             for j in range(nf):
@@ -296,7 +293,7 @@ def _simulate_nonlinear(n_steps, n_sub, limit_abs, limit_factor, warmup,
             u[i] = slots[in_slots[i]]
         _rhs(z, u, f, stuck, Ax, Bx, Kq, Bq, W, n, q0, ints, geo, chi, grav, zeros, mass, bias,
              rot, pos, w, wd, vd, fa, na, jp, msp, mp, qa, hold, k1, L, Y, S, LS, lam, acc)
-        if any_stuck and _break_away(stuck, dirn, f, hold, coulomb, static):
+        if _break_away(stuck, dirn, f, hold, coulomb, static):
             _rhs(z, u, f, stuck, Ax, Bx, Kq, Bq, W, n, q0, ints, geo, chi, grav, zeros, mass, bias,
                  rot, pos, w, wd, vd, fa, na, jp, msp, mp, qa, hold, k1, L, Y, S, LS, lam, acc)
 
@@ -319,10 +316,7 @@ def _simulate_nonlinear(n_steps, n_sub, limit_abs, limit_factor, warmup,
             if sub > 0:
                 _rhs(z, u, f, stuck, Ax, Bx, Kq, Bq, W, n, q0, ints, geo, chi, grav, zeros, mass, bias,
                      rot, pos, w, wd, vd, fa, na, jp, msp, mp, qa, hold, k1, L, Y, S, LS, lam, acc)
-                any_stuck = False
-                for j in range(nf):
-                    any_stuck |= stuck[j]
-                if any_stuck and _break_away(stuck, dirn, f, hold, coulomb, static):
+                if _break_away(stuck, dirn, f, hold, coulomb, static):
                     _rhs(z, u, f, stuck, Ax, Bx, Kq, Bq, W, n, q0, ints, geo, chi, grav, zeros, mass,
                          bias, rot, pos, w, wd, vd, fa, na, jp, msp, mp, qa, hold, k1, L, Y, S, LS, lam, acc)
             for i in range(nx):
@@ -351,9 +345,6 @@ def _simulate_nonlinear(n_steps, n_sub, limit_abs, limit_factor, warmup,
                         reversed_ = True
             if reversed_:
                 _project(z, stuck, W, n, q0, ints, geo, chi, mass, rot, pos, jp, msp, mp, qa, L, Y, S, LS, lam, hold)
-        any_stuck = False
-        for j in range(nf):
-            any_stuck |= stuck[j]
 
         # divergence
         bad, limit, scale = _divergence_limit(z, nx, k, warmup, limit, limit_abs, limit_factor, scale)
