@@ -23,6 +23,7 @@ OPTIONS = {
     "feed_mm_min": "--feed", "feedforward": "--feedforward", "step_mm": "--step", "move_mm": "--move",
     "q": "--q", "qd": "--qd", "qdd": "--qdd", "model": "--model",
     "joint": "--joint", "points": "--points", "modes": "--modes",
+    "scheduler": "--scheduler", "workers": "--workers", "out": "--out", "resume": "--resume",
 }
 """The library's parameter (``ModelError.path`` of an error raised without a ``source``) -> the option
 that gives it: the core and ``tasks/`` name parameters, never options; :func:`guarded` locates their

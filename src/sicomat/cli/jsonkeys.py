@@ -29,6 +29,7 @@ SI_NAMES: dict[str, str] = {
     "position_crossover_rad_s": "position_crossover",
     "velocity_bandwidth_rad_s": "velocity_bandwidth",
     "position_bandwidth_rad_s": "position_bandwidth",
+    "elapsed_s": "elapsed",
 }
 
 

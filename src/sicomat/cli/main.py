@@ -22,6 +22,10 @@ from .robot import robot as _robot  # noqa: E402
 
 app.command(name="robot")(_robot)
 
+from .study import study as _study  # noqa: E402
+
+app.command(name="study")(_study)
+
 ModelArgument = typer.Argument(..., help="Model file (TOML).", dir_okay=False)
 
 

@@ -31,6 +31,8 @@ FORMATS: dict[str, Tuple[str, Tuple[str, ...]]] = {
     "csv": ("a CSV file", (".csv",)),
     "figure": ("a figure", (".png", ".svg", ".pdf")),
     "model": ("a model file", (".toml",)),
+    "parquet": ("a Parquet file", (".parquet",)),
+    "json": ("a JSON file", (".json",)),
 }
 """Output kinds: a description and the accepted extensions (compared ignoring case)."""
 

@@ -19,7 +19,7 @@ from ..catalogue.resolve import resolve_parts
 if TYPE_CHECKING:  # pragma: no cover
     from ..catalogue.store import Catalogue
 
-__all__ = ["load_model", "machine_from_dict", "save_model", "model_text", "dump_model", "parse_override",
+__all__ = ["load_model", "model_from_data", "machine_from_dict", "save_model", "model_text", "dump_model", "parse_override",
            "with_overrides"]
 
 _UNION_TAGS = union_tags()  # key of a block table → its registered types (description/registry.py)
@@ -45,11 +45,21 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = (), *,
     """
     source = str(path)
     text = _read_text(path)
-    data = _read_toml(text, source)
+    return model_from_data(_read_toml(text, source), overrides, source=source, catalogue=catalogue)
+
+
+def model_from_data(data: Mapping[str, Any], overrides: Iterable[str] = (), *, source: str | None = None,
+                    catalogue: "Catalogue | None" = None, base_valid: bool = False) -> Machine:
+    """:func:`load_model` on a model file's data already read (the mapping TOML gives): the catalogue ids
+    resolved, the ``KEY=VALUE`` overrides applied, the whole validated; errors name ``source``. A study's
+    workers build each variant this way from the base file read once (``sicomat.studies``);
+    ``base_valid``: ``data`` without the overrides is known to validate (checked once before), so only
+    the result of the overrides is validated."""
     _check_depth(data, source)
     data = resolve_parts(data, catalogue, source=source)
-    machine = _validate(data, source)
     settings = [(item, *parse_override(item)) for item in overrides]
+    if not (settings and base_valid):
+        machine = _validate(data, source)
     if not settings:
         return machine
     data = _apply_settings(data, [(key, value, f"--set {item}") for item, key, value in settings])

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-__all__ = ["bode_payload", "margins_payload", "write_tuned", "response_verdict", "verdict_subject"]
+__all__ = ["bode_payload", "margins_payload", "write_tuned", "tuned_machine", "response_verdict", "verdict_subject"]
 
 
 def bode_payload(frf, margins) -> dict[str, Any]:
@@ -73,7 +73,21 @@ def write_tuned(machine, axis: str, gains: dict[str, float], notch: dict[str, fl
     tuned keys changed: comments and units kept, a tuned value in the unit its line used and
     marked ``# was <old value>`` (``docs/outputs.md``).
     """
-    from ..io.modelfile import save_model
+    from ..io.modelfile import dump_data, machine_from_dict, save_model
+
+    tuned = tuned_machine(machine, axis, gains, notch)
+    machine_from_dict(dump_data(tuned), source=str(path))  # validate what is written
+    header = None
+    if based_on is not None:
+        header = (f"Tuned by `sicomat tune --method {method}` from {based_on}, axis {axis}"
+                  + (", with a notch filter added" if notch is not None else "")
+                  + ".\nThe changed values are marked '# was'; everything else is the original's text.")
+    return save_model(tuned, path, based_on=based_on, header=header)
+
+
+def tuned_machine(machine, axis: str, gains: dict[str, float], notch: dict[str, float] | None = None):
+    """``machine`` with ``axis``'s controller given the tuned ``gains`` (``Kp`` or ``Kp_normalized`` as the
+    model gives it, ``Ti``, ``Kv``) and, when given, the ``notch`` appended to its current filters."""
     from ..description.servo import FilterSpec
 
     spec = machine.axes[axis]
@@ -88,13 +102,4 @@ def write_tuned(machine, axis: str, gains: dict[str, float], notch: dict[str, fl
                                      FilterSpec(type="notch", frequency=notch["frequency_hz"], width=notch["width"],
                                                 depth=notch["depth"])]
     axis_spec = spec.model_copy(update={"controller": ctrl.model_copy(update=update)})
-    tuned = machine.model_copy(update={"axes": {**machine.axes, axis: axis_spec}})
-    from ..io.modelfile import dump_data, machine_from_dict
-
-    machine_from_dict(dump_data(tuned), source=str(path))  # validate what is written
-    header = None
-    if based_on is not None:
-        header = (f"Tuned by `sicomat tune --method {method}` from {based_on}, axis {axis}"
-                  + (", with a notch filter added" if notch is not None else "")
-                  + ".\nThe changed values are marked '# was'; everything else is the original's text.")
-    return save_model(tuned, path, based_on=based_on, header=header)
+    return machine.model_copy(update={"axes": {**machine.axes, axis: axis_spec}})

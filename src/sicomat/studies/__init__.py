@@ -1,0 +1,101 @@
+"""Parameter studies: variants of a machine model run at scale on Dask (``docs/studies.md``).
+
+>>> from sicomat.studies import Study                                      # doctest: +SKIP
+>>> results = Study("examples/studies/ballscrew_design.toml").run()        # doctest: +SKIP
+>>> results.to_pandas(); results.pareto(); results.plot("pareto")          # doctest: +SKIP
+
+A study is a base model, parameters varied by the key paths of ``--set`` (grids, distributions, catalogue
+lists), the analyses run on every variant and optional constraints and Pareto objectives. :class:`Study`
+checks all of it against the base model when it is made (nothing is computed before); :meth:`Study.run`
+computes the variants in chunks on a Dask cluster (an embedded ``LocalCluster`` unless given a client or a
+scheduler's address), writing each chunk as it finishes, and returns :class:`StudyResults`.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .results import StudyResults
+from .spec import StudySpec, load_study, study_from_dict
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..progress import ProgressCallback
+    from .variants import StudyPlan
+
+__all__ = ["Study", "StudyResults", "StudySpec", "load_study", "default_out"]
+
+
+def default_out(study_path: Path) -> Path:
+    """Where a study's results go by default: ``<study name>.results/`` beside the study file."""
+    return study_path.parent / f"{study_path.stem}.results"
+
+
+class Study:
+    """A study file checked against its base model, ready to run.
+
+    Parameters
+    ----------
+    path : path-like
+        The study file (TOML; its ``base`` is relative to the file's folder).
+    out : path-like, optional
+        The folder that receives the table, the chunks and the figures (default :func:`default_out`).
+
+    Raises
+    ------
+    ModelError
+        The study file or its base model is wrong (the file and key named); nothing has been computed.
+    """
+
+    def __init__(self, path: str | Path, out: str | Path | None = None) -> None:
+        from .variants import plan_study
+
+        self.path = Path(path)
+        spec, base = load_study(self.path)
+        self.plan: "StudyPlan" = plan_study(spec, base, str(self.path))
+        self.out = Path(out) if out is not None else default_out(self.path)
+
+    @property
+    def variants(self) -> int:
+        """The number of variants."""
+        return self.plan.variants
+
+    def settings(self, variant: int) -> list[str]:
+        """``variant``'s ``--set`` overrides of the base model (``sicomat <command> BASE --set ...``)."""
+        return self.plan.settings(variant)
+
+    def run(self, client: Any = None, *, scheduler: str | None = None, workers: int | None = None,
+            resume: bool = False, csv: bool | None = None, figures: bool = False,
+            progress: "ProgressCallback | None" = None) -> StudyResults:
+        """Compute the variants (only the missing chunks with ``resume``) and write the table.
+
+        ``client``: a ``distributed.Client`` (kept open); ``scheduler``: a scheduler's address; else an
+        embedded local cluster of ``workers`` processes (default one per core). ``csv``: write the table as
+        CSV instead of Parquet (default: the study's ``format``). ``figures``: also save the figures as PNG.
+        """
+        from ..io.atomic import atomic_write
+        from .engine import run_plan
+
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            from ..errors import ModelError
+
+            raise ModelError("expected a number of workers >= 1", path="workers", value=workers)
+        start = time.perf_counter()
+        engine = run_plan(self.plan, self.out, client=client, scheduler=scheduler, workers=workers, resume=resume,
+                          progress=progress)
+        as_csv = csv if csv is not None else self.plan.spec.format == "csv"
+        path = self.out / ("results.csv" if as_csv else "results.parquet")
+        table = engine.table
+        if as_csv:
+            atomic_write(path, lambda tmp: table.to_csv(tmp, index=False), kind="csv")
+        else:
+            atomic_write(path, lambda tmp: table.to_parquet(tmp, index=False), kind="parquet")
+        info = {"chunks": {"total": engine.chunks, "computed": engine.computed, "reused": engine.reused},
+                "workers": engine.workers, "scheduler": engine.scheduler, "compute_time": engine.compute_s,
+                "out": str(self.out)}
+        results = StudyResults(table, self.plan, time.perf_counter() - start, path, info)
+        if figures:
+            written = results.write_figures(self.out)
+            info["figures"] = [str(p) for p in written]
+        return results

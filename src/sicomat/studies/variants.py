@@ -1,0 +1,342 @@
+"""A study's variants: each parameter's levels, checked against the base model, and the variants as settings.
+
+Grid parameters (``values``, ``range``, ``logrange``, ``catalogue``) combine as a Cartesian product, the last
+parameter varying fastest; the ``samples`` draws of the distributions (all drawn together, one vector per
+sample) are crossed with the grid: variant ``i`` is grid point ``i // samples`` with draw ``i % samples``, so
+every design point sees the same draws (common random numbers, ``docs/studies.md``). Parameter ``k``'s draws
+come from ``numpy.random.default_rng([seed, k])``: the same study and seed give the same variants, and
+adding a parameter leaves the others' draws as they were.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import ModelError, SicomatError
+from .spec import MAX_VARIANTS, ParameterSpec, StudySpec, split_quantity
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..description.machine import Machine
+
+__all__ = ["Parameter", "StudyPlan", "plan_study", "value_at"]
+
+CHECKED_LEVELS = 64
+"""Grid levels of one parameter validated one by one against the base model before any work (all of
+them up to this count; beyond it the first and last 32): a bad value is refused up front rather than
+failing every variant that uses it."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One varied key path: its settings (what ``--set`` receives) and the table's input values (SI, or
+    the catalogue id), ``drawn`` for a distribution (indexed by sample) else a grid axis (by level)."""
+
+    index: int
+    path: str
+    settings: tuple[Any, ...]
+    inputs: np.ndarray
+    drawn: bool
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """Everything the workers need: the base model's data, the parameters' levels and the variant count."""
+
+    spec: StudySpec
+    source: str
+    base_path: Path
+    base_data: dict[str, Any]
+    axis: str
+    parameters: tuple[Parameter, ...]
+    samples: int
+    grid_shape: tuple[int, ...]
+    metrics: tuple[str, ...] = field(default=())
+
+    @property
+    def variants(self) -> int:
+        return int(np.prod(self.grid_shape, dtype=np.int64)) * self.samples
+
+    def _levels(self, variant: int) -> list[int]:
+        grid, sample = divmod(int(variant), self.samples)
+        out = []
+        for size in reversed(self.grid_shape):
+            grid, digit = divmod(grid, size)
+            out.append(digit)
+        digits = iter(reversed(out))
+        return [sample if p.drawn else next(digits) for p in self.parameters]
+
+    def settings(self, variant: int) -> list[str]:
+        """The ``KEY=VALUE`` overrides of ``variant``."""
+        return [f"{p.path}={_toml(p.settings[level])}" for p, level in zip(self.parameters, self._levels(variant))]
+
+    def inputs(self, first: int, stop: int) -> dict[str, np.ndarray]:
+        """The table's input columns of variants ``first`` to ``stop - 1``."""
+        idx = np.arange(first, stop)
+        grid, sample = np.divmod(idx, self.samples)
+        digits: list[np.ndarray] = []
+        for size in reversed(self.grid_shape):
+            grid, digit = np.divmod(grid, size)
+            digits.append(digit)
+        grid_digits = iter(reversed(digits))
+        return {p.path: p.inputs[sample if p.drawn else next(grid_digits)] for p in self.parameters}
+
+
+def _toml(value: Any) -> str:
+    """``value`` as the right-hand side of ``--set KEY=VALUE`` (a TOML value)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float, np.floating, np.integer)):
+        return repr(float(value)) if isinstance(value, (float, np.floating)) else str(int(value))
+    return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def value_at(data: Any, path: str) -> Any:
+    """The value at a dotted key path of plain data (None when there is none)."""
+    node = data
+    for part in path.split("."):
+        if isinstance(node, dict):
+            node = node.get(part)
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            return None
+    return node
+
+
+def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
+    """Check the study against its base model and generate the parameters' levels; every refusal is a
+    :class:`ModelError` naming the study file (``source``) and the key, before any variant is computed."""
+    from ..io.modelfile import _read_text, _read_toml, dump_data, model_from_data
+
+    if not base.is_file():
+        raise ModelError(f"the base model {base} is not a file", source=source, path="base", value=spec.base)
+    base_data = _read_toml(_read_text(base), str(base))
+    machine = model_from_data(base_data, source=str(base))
+    try:
+        axis = machine.axis_name(spec.axis)
+    except ModelError as exc:
+        raise ModelError(exc.message, source=source, path="axis", value=spec.axis) from None
+    dumped = dump_data(machine)
+    params = []
+    for k, p in enumerate(spec.parameters):
+        params.append(_parameter(k, p, spec.seed, base_data, dumped, source, str(base)))
+    drawn = [(k, p) for k, p in enumerate(spec.parameters) if p.drawn]
+    samples = {p.samples for _, p in drawn}
+    if len(samples) > 1:
+        k = drawn[[p.samples for _, p in drawn].index(max(samples))][0]
+        raise ModelError(f"the distributions are drawn together: give them the same samples (found "
+                         f"{', '.join(str(s) for s in sorted(samples))})", source=source, path=f"parameters.{k}.samples")
+    plan = StudyPlan(spec, source, base, base_data, axis, tuple(params), samples.pop() if samples else 1,
+                     tuple(len(p.settings) for p in params if not p.drawn))
+    if plan.variants > MAX_VARIANTS:
+        raise ModelError(f"{plan.variants} variants; at most {MAX_VARIANTS} in one study", source=source,
+                         path="parameters")
+    from .analyses import check_analyses, metric_names
+
+    metrics = metric_names(spec.analyses, machine, axis)
+    check_analyses(spec, machine, axis, source)
+    _check_names(spec, metrics, [p.path for p in spec.parameters], source)
+    return StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics)})
+
+
+def _check_names(spec: StudySpec, metrics: list[str], inputs: list[str], source: str) -> None:
+    known = [*inputs, *metrics]
+    for k, constraint in enumerate(spec.parsed_constraints()):
+        for name in constraint.metrics():
+            if name not in known:
+                raise ModelError(_unknown(name, known, spec.analyses), source=source, path=f"constraints.{k}",
+                                 value=constraint.text)
+    if spec.pareto is not None:
+        for which in ("maximize", "minimize"):
+            for k, name in enumerate(getattr(spec.pareto, which)):
+                if name not in known:
+                    raise ModelError(_unknown(name, known, spec.analyses), source=source,
+                                     path=f"pareto.{which}.{k}", value=name)
+
+
+def _unknown(name: str, known: list[str], analyses: list[str]) -> str:
+    close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
+    hint = f"; closest: {', '.join(close)}" if close else ""
+    return (f"unknown metric {name!r} for the analyses {', '.join(analyses)}{hint} "
+            f"(every name: `sicomat study --metrics`, docs/studies.md)")
+
+
+def _parameter(k: int, p: ParameterSpec, seed: int, base_data: dict[str, Any], dumped: dict[str, Any],
+               source: str, base_source: str) -> Parameter:
+    where = f"parameters.{k}"
+
+    def bad(message: str, key: str, value: Any = None) -> ModelError:
+        return ModelError(message, source=source, path=f"{where}.{key}", value=value)
+
+    base_value = value_at(dumped, p.path)
+    if p.relative and not (isinstance(base_value, (int, float)) and not isinstance(base_value, bool)):
+        raise bad(f"relative values multiply the base model's value at {p.path}, which is "
+                  + ("not given" if base_value is None else f"not a number ({base_value!r})"), "relative")
+    way = p.way
+    if way == "catalogue":
+        settings = _catalogue(p, bad)
+    elif way == "values":
+        if not p.values:
+            raise bad("an empty list of values", "values", p.values)
+        settings = list(p.values)
+    elif way in ("range", "logrange"):
+        settings = _range(getattr(p, way), way == "logrange", lambda m, v=None: bad(m, way, v))
+    else:
+        settings = _draws(p, seed, k, lambda m, key, v=None: bad(m, key, v))
+    if p.relative:
+        factors = np.array([_number(s, lambda m, v=None: bad(m, way, v)) for s in settings])
+        settings = list(float(base_value) * factors)   # type: ignore[arg-type]
+    inputs = _inputs(p, settings, base_data, source, base_source, where)
+    return Parameter(k, p.path, tuple(settings), inputs, p.drawn)
+
+
+def _number(value: Any, bad) -> float:
+    try:
+        number, unit = split_quantity(value)
+    except ValueError as exc:
+        raise bad(str(exc), value) from None
+    if unit:
+        raise bad("relative values are plain factors (1.1 for +10 %), without a unit", value)
+    return number
+
+
+def _range(spec: list[Any], log: bool, bad) -> list[Any]:
+    if len(spec) != 3:
+        raise bad("expected [LOW, HIGH, N]", spec)
+    low, high, n = spec
+    if isinstance(n, bool) or not isinstance(n, int):
+        raise bad("the third item N (the number of values) must be an integer", spec)
+    if n < 1:
+        raise bad(f"an empty range: N = {n}; expected N >= 1", spec)
+    try:
+        (lo, unit), (hi, unit_high) = split_quantity(low), split_quantity(high)
+    except ValueError as exc:
+        raise bad(str(exc), spec) from None
+    if unit != unit_high:
+        raise bad(f"give both ends in the same unit (found {unit or 'none'!r} and {unit_high or 'none'!r})", spec)
+    if log and not (lo > 0 and hi > 0):
+        raise bad("a log range needs LOW > 0 and HIGH > 0", spec)
+    if n > 1 and lo == hi:
+        raise bad(f"an empty range: LOW = HIGH with N = {n}", spec)
+    numbers = np.geomspace(lo, hi, n) if log else np.linspace(lo, hi, n)
+    return [f"{float(x)!r} {unit}" if unit else float(x) for x in numbers]
+
+
+def _draws(p: ParameterSpec, seed: int, k: int, bad) -> list[Any]:
+    if p.samples is None or p.samples < 1:
+        raise bad("expected samples >= 1 (the number of draws)", "samples", p.samples)
+    if p.distribution == "uniform":
+        if p.low is None or p.high is None or p.mean is not None or p.std is not None:
+            raise bad("a uniform distribution takes low and high", "distribution", p.distribution)
+        (a, unit), (b, unit_b) = _pair(p.low, p.high, "low", "high", bad)
+        if b < a:
+            raise bad(f"a negative spread: high ({p.high}) < low ({p.low})", "high", p.high)
+        draws = np.random.default_rng([seed, k]).uniform(a, b, p.samples)
+    else:
+        if p.mean is None or p.std is None or p.low is not None or p.high is not None:
+            raise bad(f"a {p.distribution} distribution takes mean and std", "distribution", p.distribution)
+        (mean, unit), (std, unit_b) = _pair(p.mean, p.std, "mean", "std", bad)
+        if std < 0:
+            raise bad("a negative spread: std < 0", "std", p.std)
+        rng = np.random.default_rng([seed, k])
+        if p.distribution == "normal":
+            draws = rng.normal(mean, std, p.samples)
+        else:
+            if mean <= 0:
+                raise bad("a lognormal distribution needs mean > 0", "mean", p.mean)
+            sigma2 = math.log1p((std / mean) ** 2)   # mean and std of the variable itself, not of its log
+            draws = rng.lognormal(math.log(mean) - sigma2 / 2, math.sqrt(sigma2), p.samples)
+    return [f"{float(x)!r} {unit}" if unit else float(x) for x in draws]
+
+
+def _pair(a: Any, b: Any, name_a: str, name_b: str, bad) -> tuple[tuple[float, str], tuple[float, str]]:
+    try:
+        first = split_quantity(a)
+    except ValueError as exc:
+        raise bad(str(exc), name_a, a) from None
+    try:
+        second = split_quantity(b)
+    except ValueError as exc:
+        raise bad(str(exc), name_b, b) from None
+    if first[1] != second[1]:
+        raise bad(f"give {name_a} and {name_b} in the same unit (found {first[1] or 'none'!r} and "
+                  f"{second[1] or 'none'!r})", name_b, b)
+    return first, second
+
+
+def _catalogue(p: ParameterSpec, bad) -> list[Any]:
+    from ..catalogue.store import load_catalogue
+
+    try:
+        entries = load_catalogue().select(p.catalogue, p.where)
+    except ModelError as exc:
+        key = "catalogue" if exc.source == "KIND" else "where"
+        raise bad(exc.message, key, exc.value) from None
+    if not entries:
+        raise bad(f"no {p.catalogue} in the catalogue meets {' and '.join(p.where) or 'the filters'}", "where",
+                  p.where)
+    return [e.id for e in entries]
+
+
+def _inputs(p: ParameterSpec, settings: list[Any], base_data: dict[str, Any], source: str, base_source: str,
+            where: str) -> np.ndarray:
+    """The table's input column: each setting validated on the base model (a grid's levels one by one, up to
+    :data:`CHECKED_LEVELS`; a distribution's centre) and read back in SI units."""
+    from ..io.modelfile import dump_data, model_from_data
+
+    def read(setting: Any) -> Any:
+        item = f"{p.path}={_toml(setting)}"
+        try:
+            machine = model_from_data(base_data, [item], source=base_source, base_valid=True)
+        except SicomatError as exc:
+            message = exc.message if isinstance(exc, ModelError) else str(exc)
+            located = f" ({exc.path})" if isinstance(exc, ModelError) and exc.path and exc.path != p.path else ""
+            raise ModelError(f"{p.path} = {_toml(setting)} does not fit the base model{located}: {message}",
+                             source=source, path=f"{where}.path", value=p.path) from None
+        return value_at(dump_data(machine), p.path)
+
+    if p.catalogue is not None:
+        for i in _checked_indices(len(settings)):
+            read(settings[i])
+        return np.array(settings, dtype=object)
+    checked = {i: read(settings[i]) for i in _checked_indices(len(settings))} if not p.drawn else {}
+    probes = list(checked.items())
+    if p.drawn:   # the draws are not validated one by one (an outlier fails its own variant): their centre is
+        centre = p.mean if p.mean is not None else p.low
+        centre = centre if not p.relative else settings[0]
+        probes.append((-1, read(centre)))
+    factors: dict[str, float] = {}   # unit -> its SI factor, read back from a validated level
+    for i, si in probes:
+        setting = settings[i] if i >= 0 else (p.mean if p.mean is not None else p.low)
+        if isinstance(setting, str) and isinstance(si, (int, float)) and not isinstance(si, bool):
+            try:
+                number, unit = split_quantity(setting)
+            except ValueError:
+                continue
+            if number != 0:
+                factors.setdefault(unit, float(si) / number)
+    column: list[Any] = []
+    for i, setting in enumerate(settings):
+        if i in checked:
+            column.append(checked[i])
+            continue
+        try:
+            number, unit = split_quantity(setting)
+        except ValueError:
+            column.append(setting)
+            continue
+        column.append(number if not unit else number * factors[unit] if unit in factors else read(setting))
+    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in column):
+        return np.array(column, dtype=float)
+    return np.array(column, dtype=object)
+
+
+def _checked_indices(n: int) -> list[int]:
+    half = CHECKED_LEVELS // 2
+    return list(range(n)) if n <= CHECKED_LEVELS else [*range(half), *range(n - half, n)]
