@@ -201,6 +201,7 @@ class _client:
     def __init__(self, client: Any, scheduler: str | None, workers: int | None) -> None:
         self.given, self.scheduler, self.workers = client, scheduler, workers
         self.own: list[Any] = []
+        self.levels: list[tuple[Any, int]] = []
 
     def __enter__(self) -> tuple[Any, str, int | None]:
         import logging
@@ -219,7 +220,13 @@ class _client:
             return client, self.scheduler, None
         cores = os.cpu_count() or 1
         n = self.workers or cores
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+        # the scheduler runs in this process: its INFO lines (workers starting and closing) are not the
+        # user's business on the terminal; the levels are put back on exit
+        for name in ("distributed", "distributed.scheduler", "distributed.nanny", "distributed.core"):
+            logger = logging.getLogger(name)
+            self.levels.append((logger, logger.level))
+            logger.setLevel(logging.ERROR)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR)
         client = Client(cluster)
         self.own += [client, cluster]
@@ -231,3 +238,5 @@ class _client:
                 thing.close()
             except Exception:  # noqa: BLE001 - closing a cluster that is going away anyway
                 pass
+        for logger, level in self.levels:
+            logger.setLevel(level)

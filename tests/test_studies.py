@@ -1,0 +1,367 @@
+"""Parameter studies (issue 14): the table against the variants run one by one through the public API, seeds,
+the distributions' statistics, failed variants as rows, constraints, and bad study files refused up front.
+
+The engine's resilience (worker counts, a killed worker, an interrupted study resumed) is in
+``test_studies_engine.py``. These tests run on an in-process Dask client (threads): the table does not depend
+on where a chunk runs (that is what the engine tests check with worker processes).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from sicomat.errors import ModelError
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client
+
+    with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+        yield c
+
+
+def write_study(folder: Path, text: str, name: str = "study.toml") -> Path:
+    """A study file in ``folder`` whose base is the paper's 5M4S (copied beside it)."""
+    (folder / "paper_5m4s.toml").write_text((EXAMPLES / "paper_5m4s.toml").read_text())
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
+GRID = """
+base = "paper_5m4s.toml"
+seed = 3
+analyses = ["modal", "tune", "margins", "simulate"]
+constraints = ["margins.velocity.phase_margin_deg >= 40", "modal.f2_hz > 300"]
+
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["200 kg", "0.35 t"]
+
+[[parameters]]
+path = "axes.X.mechanics.couplings.load.stiffness"
+range = ["2e8 N/m", "6e8 N/m", 2]
+
+[tune]
+velocity_crossover = "20 Hz"
+velocity_phase_margin = 45
+
+[simulate]
+duration = "0.1 s"
+"""
+
+
+def test_a_grid_study_equals_its_variants_run_one_by_one(tmp_path, client):
+    """Every row against the same variant through the public API (load_model --set, modal_analysis,
+    tune_frequency, stability_margins on the tuned loop, simulate on the tuned loop). The study runs the
+    same arithmetic, so the analyses agree to rounding (rtol 1e-12: the only differences are the order of
+    a few sums); its simulations run in one batch per structure while simulate() runs one loop, whose
+    following errors agree to a few ulps of the 10 mm positions they are differences of (atol 1e-12 m)."""
+    from sicomat import load_model, simulate, tune_frequency, build_servo_loop, stability_margins
+    from sicomat.frequency import LoopAnalysis
+    from sicomat.mechanics.modal import modal_analysis
+    from sicomat.robotics.lowering import axis_mechanics
+    from sicomat.studies import Study
+    from sicomat.tasks.simulate import choose_profile
+    from sicomat.tuning import TuningTargets
+
+    path = write_study(tmp_path, GRID)
+    results = Study(path).run(client)
+    table = results.to_pandas()
+    assert list(table["variant"]) == [0, 1, 2, 3]
+    # the grid: the Cartesian product, the last parameter fastest, the inputs in SI
+    assert list(table["axes.X.mechanics.bodies.load.mass"]) == [200.0, 200.0, 350.0, 350.0]
+    assert list(table["axes.X.mechanics.couplings.load.stiffness"]) == [2e8, 6e8, 2e8, 6e8]
+    assert table["error"].isna().all()
+    for mass, k, row in zip(["200 kg", "200 kg", "0.35 t", "0.35 t"], ["2e8 N/m", "6e8 N/m"] * 2,
+                            table.itertuples(index=False)):
+        row = dict(zip(table.columns, row))
+        machine = load_model(tmp_path / "paper_5m4s.toml", [f"axes.X.mechanics.bodies.load.mass={mass}",
+                                                            f"axes.X.mechanics.couplings.load.stiffness={k}"])
+        modes = modal_analysis(axis_mechanics(machine, "X"))
+        flexible = sorted(m.undamped_hz for m in modes.modes if not m.rigid)
+        assert row["modal.f1_hz"] == pytest.approx(flexible[0], rel=1e-12)
+        assert row["modal.f2_hz"] == pytest.approx(flexible[1], rel=1e-12)
+        loop = build_servo_loop(machine, "X")
+        tuned = tune_frequency(loop, TuningTargets(velocity_crossover=2 * math.pi * 20, velocity_phase_margin=45),
+                               suggest_notch=False)
+        assert row["tune.targets_met"] == tuned.targets_met
+        assert row["tune.Kp"] == pytest.approx(tuned.tuned.Kp, rel=1e-12)
+        assert row["tune.Kv"] == pytest.approx(tuned.tuned.Kv, rel=1e-12)
+        tuned_loop = tuned.tuned_loop()
+        an = LoopAnalysis.of(tuned_loop)
+        pm = stability_margins(an.response("velocity-open")).phase_margin_deg
+        assert row["margins.velocity.phase_margin_deg"] == pytest.approx(pm, rel=1e-12)
+        profile, _ = choose_profile(machine.axes["X"].trajectory, None, None, None, None)
+        series = simulate(tuned_loop, profile, 0.1)
+        assert row["simulate.max_following_error"] == pytest.approx(series.metrics.max_following_error, abs=1e-12)
+        assert row["simulate.rms_following_error"] == pytest.approx(series.metrics.rms_following_error, abs=1e-12)
+        assert row["simulate.final_error"] == pytest.approx(series.metrics.final_error, abs=1e-12)
+        assert row["constraints_ok"] == (pm >= 40 and flexible[1] > 300)
+    # the table as written, read back
+    assert results.results_path.name == "results.parquet"
+    pd.testing.assert_frame_equal(pd.read_parquet(results.results_path), table)
+
+
+TOLERANCES = """
+base = "paper_5m4s.toml"
+seed = {seed}
+analyses = ["modal"]
+
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+distribution = "normal"
+mean = "270 kg"
+std = "27 kg"
+samples = 4000
+
+[[parameters]]
+path = "axes.X.mechanics.couplings.load.stiffness"
+distribution = "uniform"
+low = 0.9
+high = 1.1
+relative = true
+samples = 4000
+
+[[parameters]]
+path = "axes.X.mechanics.bodies.primary.mass"
+distribution = "lognormal"
+mean = "92 kg"
+std = "9.2 kg"
+samples = 4000
+"""
+
+
+def _plan(tmp_path: Path, text: str, name: str = "study.toml"):
+    from sicomat.studies import Study
+
+    return Study(write_study(tmp_path, text, name)).plan
+
+
+def test_seeds_reproduce_and_the_draws_have_their_distributions(tmp_path):
+    """The same seed gives the same variants; another seed others. The draws' sample means and deviations
+    match the distributions: bounds of 5 standard errors (sigma/sqrt(n) for the mean, sigma/sqrt(2n) for
+    the deviation of a normal sample, the uniform's and lognormal's from their fourth moments rounded up):
+    a correct generator fails them with probability below 1e-6 (and the seed is fixed)."""
+    a = _plan(tmp_path, TOLERANCES.format(seed=7), "a.toml")
+    b = _plan(tmp_path, TOLERANCES.format(seed=7), "b.toml")
+    c = _plan(tmp_path, TOLERANCES.format(seed=8), "c.toml")
+    n = 4000
+    assert a.variants == n and a.grid_shape == ()
+    assert [a.settings(v) for v in (0, 1, 3999)] == [b.settings(v) for v in (0, 1, 3999)]
+    assert a.settings(0) != c.settings(0)
+    inputs = a.inputs(0, n)
+    mass = inputs["axes.X.mechanics.bodies.load.mass"]
+    assert abs(mass.mean() - 270) < 5 * 27 / math.sqrt(n)
+    assert abs(mass.std() - 27) < 5 * 27 / math.sqrt(2 * n)
+    k = inputs["axes.X.mechanics.couplings.load.stiffness"] / 3.8e8    # relative to the base model's 3.8e8 N/m
+    assert k.min() >= 0.9 and k.max() <= 1.1
+    assert abs(k.mean() - 1.0) < 5 * (0.2 / math.sqrt(12)) / math.sqrt(n)
+    primary = inputs["axes.X.mechanics.bodies.primary.mass"]
+    assert primary.min() > 0                                             # lognormal: never negative
+    assert abs(primary.mean() - 92) < 5 * 9.2 / math.sqrt(n)             # mean and std of the variable itself
+    assert abs(primary.std() - 9.2) < 5 * 9.2 * 1.2 / math.sqrt(2 * n)
+    # the variant's settings are the inputs (SI), as --set receives them
+    first = dict(s.split("=", 1) for s in a.settings(0))
+    assert first["axes.X.mechanics.bodies.load.mass"] == f'"{float(mass[0])!r} kg"'   # kg is SI: the same number
+
+
+def test_grid_parameters_cross_the_draws(tmp_path):
+    """Grid x samples: variant i is grid point i // samples with draw i % samples (common random numbers)."""
+    plan = _plan(tmp_path, """
+base = "paper_5m4s.toml"
+analyses = ["modal"]
+[[parameters]]
+path = "axes.X.controller.Kv"
+logrange = ["10 1/s", "40 1/s", 3]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+distribution = "uniform"
+low = "250 kg"
+high = "290 kg"
+samples = 5
+""")
+    assert plan.variants == 15
+    inputs = plan.inputs(0, 15)
+    np.testing.assert_allclose(inputs["axes.X.controller.Kv"], np.repeat([10.0, 20.0, 40.0], 5), rtol=1e-14)
+    mass = inputs["axes.X.mechanics.bodies.load.mass"]
+    np.testing.assert_array_equal(mass[:5], mass[5:10])
+    assert ((mass >= 250) & (mass <= 290)).all()
+
+
+def test_failed_variants_are_rows_with_their_message(tmp_path, client):
+    """Draws that make the model invalid (a negative mass) fail their own variant, never the study: the row
+    keeps its inputs, has the message in ``error``, NaN metrics and constraints_ok false."""
+    from sicomat.studies import Study
+
+    path = write_study(tmp_path, """
+base = "paper_5m4s.toml"
+seed = 1
+analyses = ["modal", "margins"]
+constraints = ["modal.f1_hz > 0"]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+distribution = "normal"
+mean = "20 kg"
+std = "40 kg"
+samples = 12
+""")
+    results = Study(path).run(client)
+    table = results.to_pandas()
+    negative = table["axes.X.mechanics.bodies.load.mass"] <= 0
+    assert 0 < negative.sum() < 12                       # the seed gives both (checked, not assumed)
+    assert (table["error"].notna() == negative).all()
+    assert table.loc[negative, "error"].str.contains("mass").all()
+    assert table.loc[negative, "modal.f1_hz"].isna().all()
+    assert not table.loc[negative, "constraints_ok"].any()
+    assert table.loc[~negative, "constraints_ok"].all()
+    summary = results.summary()
+    assert summary["failed"] == int(negative.sum())
+    assert summary["errors"][0]["variant"] == int(table.index[negative][0])
+
+
+def test_constraints_are_the_expressions_on_the_table(tmp_path, client):
+    from sicomat.studies import Study
+
+    path = write_study(tmp_path, """
+base = "paper_5m4s.toml"
+analyses = ["margins"]
+constraints = ["margins.velocity.phase_margin_deg >= 30", "margins.stable == true",
+               "margins.position.crossover_hz < margins.velocity.crossover_hz"]
+[[parameters]]
+path = "axes.X.controller.Kp_normalized"
+range = ["60 1/s", "140 1/s", 5]
+""")
+    table = Study(path).run(client).to_pandas()
+    expected = ((table["margins.velocity.phase_margin_deg"] >= 30) & table["margins.stable"].astype(bool)
+                & (table["margins.position.crossover_hz"] < table["margins.velocity.crossover_hz"]))
+    assert expected.any() and not expected.all()          # the range crosses the 30 degree bound
+    assert (table["constraints_ok"].astype(bool) == expected).all()
+
+
+BAD = [
+    ("""[[parameters]]
+path = "axes.X.mechanics.bodies.lod.mass"
+values = ["1 kg"]""", "parameters.0.path", "lod"),
+    ("""[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+range = ["100 kg", "200 kg", 0]""", "parameters.0.range", "empty range"),
+    ("""[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+distribution = "normal"
+mean = "270 kg"
+std = "-10 kg"
+samples = 10""", "parameters.0.std", "negative spread"),
+    ("""constraints = ["modal.f9_hz >= 80"]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "constraints.0", "unknown metric"),
+    ("""[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+distribution = "uniform"
+low = "300 kg"
+high = "200 kg"
+samples = 3""", "parameters.0.high", "negative spread"),
+    ("""[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg", "-3 kg"]""", "parameters.0.path", "-3"),
+    ("""[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+valus = ["1 kg"]""", "parameters.0.valus", "unknown key"),
+    ("""[[parameters]]
+path = "axes.X.mechanics.parts.0.id"
+catalogue = "motor"
+where = ["peak_torque >= 1e6 N*m"]""", "parameters.0", "relative"),
+]
+
+
+@pytest.mark.parametrize("body, key, words", BAD, ids=[b[1] + ":" + b[2] for b in BAD])
+def test_bad_study_files_are_refused_before_any_work(tmp_path, body, key, words):
+    """One line naming the study file and the key, exit status 2, and nothing written (no results folder)."""
+    from sicomat.cli.main import app
+
+    if "parts.0.id" in body:   # a catalogue list: the 5M4S has no parts; refused for the filter or the path
+        key, words = "parameters.0", ""
+    path = write_study(tmp_path, 'base = "paper_5m4s.toml"\nanalyses = ["modal"]\n' + body)
+    result = runner.invoke(app, ["study", str(path), "--json"])
+    assert result.exit_code == 2, result.output
+    line = result.output.strip()
+    assert "\n" not in line and "Traceback" not in line
+    assert str(path) in line and key in line and words in line
+    assert not (tmp_path / "study.results").exists()
+
+
+def test_the_json_summary_and_the_csv_table(tmp_path):
+    """``--json``: the contract keys; ``--csv``: the table as CSV; the results beside the study file."""
+    import json
+
+    from sicomat.cli.main import app
+
+    path = write_study(tmp_path, """
+base = "paper_5m4s.toml"
+analyses = ["modal"]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["200 kg", "300 kg"]
+[pareto]
+maximize = ["modal.f2_hz"]
+minimize = ["axes.X.mechanics.bodies.load.mass"]
+""")
+    result = runner.invoke(app, ["study", str(path), "--json", "--csv", "--workers", "1", "--no-figures"])
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.output)
+    assert {"variants", "failed", "elapsed_s", "results", "pareto"} <= set(payload)
+    assert payload["variants"] == 2 and payload["failed"] == 0
+    assert Path(payload["results"]) == tmp_path / "study.results" / "results.csv"
+    table = pd.read_csv(payload["results"])
+    assert list(table["axes.X.mechanics.bodies.load.mass"]) == [200.0, 300.0]
+    # a lighter load raises the load mode: the 200 kg variant dominates on both objectives
+    assert table["modal.f2_hz"][0] > table["modal.f2_hz"][1]
+    assert [v["variant"] for v in payload["pareto"]["variants"]] == [0]
+
+
+def test_every_sizing_check_has_its_columns():
+    """The study's size columns name every check ``sicomat size`` makes (read from the source with ast)."""
+    import ast
+
+    from sicomat.studies.analyses import SIZE_CHECKS
+
+    source = (ROOT / "src" / "sicomat" / "tasks" / "size_checks.py").read_text()
+    names = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "make_check" and node.args:
+            first = node.args[0]
+            if isinstance(first, ast.Constant):
+                names.add(first.value)
+            elif isinstance(first, ast.JoinedStr):   # f"peak_{word}", f"rms_{word}"
+                prefix = first.values[0].value
+                names |= {prefix + "torque", prefix + "force"}
+    assert names == set(SIZE_CHECKS)
+
+
+def test_the_study_object_refuses_unknown_columns_and_objectives(tmp_path, client):
+    from sicomat.studies import Study
+
+    path = write_study(tmp_path, """
+base = "paper_5m4s.toml"
+analyses = ["modal"]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["200 kg", "300 kg"]
+""")
+    results = Study(path).run(client)
+    with pytest.raises(ModelError, match="no objectives"):
+        results.pareto()
+    with pytest.raises(ModelError, match="no column 'modal.f7_hz'"):
+        results.pareto(maximize=["modal.f7_hz"], minimize=["modal.f1_hz"])

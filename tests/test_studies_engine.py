@@ -1,0 +1,196 @@
+"""The study engine on real Dask worker processes (issue 14, "nothing lost"): the table does not depend on the
+number of workers; a worker killed mid-study loses no row and duplicates none; an interrupted study resumes
+and computes only the missing chunks; a resumed study that changed is refused.
+
+Each test starts a ``LocalCluster`` of worker processes on loopback; every wait is bounded (the test fails
+rather than hangs)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from sicomat.errors import ModelError
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+STUDY = """
+base = "paper_5m4s.toml"
+seed = 11
+analyses = ["modal", "margins", "simulate"]
+chunk_size = 3
+constraints = ["margins.velocity.phase_margin_deg >= 30"]
+
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+distribution = "uniform"
+low = 0.8
+high = 1.2
+relative = true
+samples = 8
+
+[[parameters]]
+path = "axes.X.controller.Kv"
+values = ["20 1/s", "30 1/s"]
+
+[simulate]
+duration = "{duration}"
+"""
+
+BOUND_S = 240.0
+"""Longest wait for a study of these tests (they take seconds; the bound only turns a hang into a failure)."""
+
+
+def write(folder: Path, duration: str = "0.1 s") -> Path:
+    (folder / "paper_5m4s.toml").write_text((EXAMPLES / "paper_5m4s.toml").read_text())
+    path = folder / "study.toml"
+    path.write_text(STUDY.format(duration=duration))
+    return path
+
+
+def cluster(n: int):
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    c = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                     silence_logs=logging.ERROR)
+    return c, Client(c)
+
+
+def bounded(fn, seconds: float = BOUND_S):
+    """Run ``fn`` in a thread; its result, or a failure if it has not returned within ``seconds``."""
+    out: dict = {}
+
+    def target():
+        try:
+            out["value"] = fn()
+        except BaseException as exc:  # noqa: BLE001 - re-raised in the test's thread
+            out["error"] = exc
+
+    thread = threading.Thread(target=target, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    assert not thread.is_alive(), f"the study did not finish within {seconds} s"
+    if "error" in out:
+        raise out["error"]
+    return out["value"]
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The study's table on one worker process."""
+    from sicomat.studies import Study
+
+    folder = tmp_path_factory.mktemp("one")
+    c, client = cluster(1)
+    try:
+        results = bounded(lambda: Study(write(folder)).run(client))
+    finally:
+        client.close()
+        c.close()
+    table = results.to_pandas()
+    assert len(table) == 16 and table["error"].isna().all()
+    return table
+
+
+def test_two_worker_processes_give_the_same_table(tmp_path, reference):
+    """Bit for bit: the chunks are fixed by the variant count, and a variant's numbers do not depend on
+    which process, or which batch, computed them."""
+    from sicomat.studies import Study
+
+    c, client = cluster(2)
+    try:
+        results = bounded(lambda: Study(write(tmp_path)).run(client))
+        workers = set(client.scheduler_info()["workers"])
+    finally:
+        client.close()
+        c.close()
+    assert len(workers) == 2
+    pd.testing.assert_frame_equal(results.to_pandas(), reference)
+
+
+def test_a_killed_worker_loses_no_row_and_duplicates_none(tmp_path, reference):
+    """SIGKILL one of two worker processes once the first chunks are written: the scheduler recomputes its
+    tasks elsewhere (the nanny restarts it); every variant is in the table once, with the reference's numbers."""
+    from sicomat.studies import Study
+
+    path = write(tmp_path, "0.4 s")        # longer runs: the kill lands while chunks are being computed
+    c, client = cluster(2)
+    try:
+        pids = client.run(os.getpid)
+        study = Study(path)
+        runner = threading.Thread(target=lambda: results.append(study.run(client)), daemon=True)
+        results: list = []
+        runner.start()
+        chunks = study.out / "chunks"
+        deadline = time.monotonic() + BOUND_S
+        while time.monotonic() < deadline and len(list(chunks.glob("chunk-*.parquet"))) < 1:
+            time.sleep(0.02)
+        written_before_kill = len(list(chunks.glob("chunk-*.parquet")))
+        assert 1 <= written_before_kill < 6, "the kill must land mid-study"
+        victim = sorted(pids.values())[0]
+        os.kill(victim, signal.SIGKILL)
+        runner.join(BOUND_S)
+        assert not runner.is_alive(), "the study did not finish after the worker was killed"
+    finally:
+        client.close()
+        c.close()
+    table = results[0].to_pandas()
+    assert list(table["variant"]) == list(range(16))          # none lost, none twice
+    short = Study(write(tmp_path / "ref" if (tmp_path / "ref").mkdir() is None else tmp_path, "0.4 s"))
+    assert short.variants == 16
+    pd.testing.assert_frame_equal(table[list(reference.columns[:3])], reference[list(reference.columns[:3])])
+    assert table["error"].isna().all()
+
+
+def test_an_interrupted_study_resumes_with_only_the_missing_chunks(tmp_path, reference):
+    """Ctrl-C after three chunks (raised from the progress callback, in the client's thread as a real Ctrl-C
+    is): the finished chunks stay on disk; --resume computes the other three and leaves the first ones
+    untouched (same bytes, same modification time); the table is the uninterrupted study's."""
+    from sicomat.studies import Study
+
+    path = write(tmp_path)
+    c, client = cluster(1)
+    try:
+        def stop_after_three(task, done, total):
+            if total is not None and done >= 3:
+                raise KeyboardInterrupt
+
+        with pytest.raises(KeyboardInterrupt):
+            bounded(lambda: Study(path).run(client, progress=stop_after_three))
+        chunks = tmp_path / "study.results" / "chunks"
+        kept = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in chunks.glob("chunk-*.parquet")}
+        assert len(kept) == 3 and not (tmp_path / "study.results" / "results.parquet").exists()
+        results = bounded(lambda: Study(path).run(client, resume=True))
+    finally:
+        client.close()
+        c.close()
+    assert results.info["chunks"] == {"total": 6, "computed": 3, "reused": 3}
+    for name, (mtime, data) in kept.items():
+        assert (chunks / name).stat().st_mtime_ns == mtime and (chunks / name).read_bytes() == data
+    pd.testing.assert_frame_equal(results.to_pandas(), reference)
+
+
+def test_resuming_a_changed_study_is_refused(tmp_path, reference):
+    from distributed import Client
+
+    from sicomat.studies import Study
+
+    path = write(tmp_path)
+    with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as client:
+        bounded(lambda: Study(path).run(client))
+        path.write_text(path.read_text().replace("seed = 11", "seed = 12"))
+        with pytest.raises(ModelError, match="changed since these chunks were written"):
+            Study(path).run(client, resume=True)
+        # without --resume the folder is the new study's: its old chunks go
+        results = bounded(lambda: Study(path).run(client))
+    assert results.info["chunks"]["reused"] == 0
+    assert not results.to_pandas()["axes.X.mechanics.bodies.load.mass"].equals(
+        reference["axes.X.mechanics.bodies.load.mass"])
