@@ -303,6 +303,8 @@ def pareto_plot(table: "pd.DataFrame", x: str, y: str, *, senses: Sequence[str] 
     senses, or a front row that is not a succeeded variant."""
     import numpy as np
 
+    from matplotlib import patheffects
+
     what = "Pareto plot"
     check_columns(table, [x, y], what)
     xs, ys = numbers(table, x, what), numbers(table, y, what)
@@ -324,9 +326,13 @@ def pareto_plot(table: "pd.DataFrame", x: str, y: str, *, senses: Sequence[str] 
                label=f"non-dominated ({len(on)})", gid="front")
     picked = np.unique(np.round(np.linspace(0, len(on) - 1, min(len(on), _MAX_LABELS))).astype(int)) \
         if len(on) else np.empty(0, dtype=int)
+    # each number towards the better side of its point: no variant lies there (it would dominate the point)
+    sx, sy = (-1 if senses[0] == "min" else 1), (1 if senses[1] == "max" else -1)
+    halo = [patheffects.withStroke(linewidth=2.5, foreground="white")]      # readable over the staircase
     for i in picked:
-        ax.annotate(str(variant[on[i]]), (xs[on[i]], ys[on[i]]), xytext=(4, 4), textcoords="offset points",
-                    fontsize=7, color="tab:red", gid="variant-label")
+        ax.annotate(str(variant[on[i]]), (xs[on[i]], ys[on[i]]), xytext=(3 * sx, 3 * sy), textcoords="offset points",
+                    ha="left" if sx > 0 else "right", va="bottom" if sy > 0 else "top",
+                    fontsize=7, color="darkred", gid="variant-label", zorder=4, path_effects=halo)
     if len(picked) < len(on):
         ax.plot([], [], linestyle="none", label=f"numbers on {len(picked)} of {len(on)}")
     better = {"min": "smaller is better", "max": "larger is better"}
