@@ -27,8 +27,8 @@ FOUNDATION = {"errors", "budget", "progress"}
 
 # What each layer may import, written out (docs/architecture.md has the same table). Read it as the
 # pipeline: foundation ← description ← io;  lti ← mechanics ← servo ← {simulation, frequency} ←
-# {tuning, reduction} ← tasks ← cli;  motion beside description (servo and above may use it);
-# plots: figures of result objects, imported only lazily by a ``plot`` method (or by tasks/cli).
+# {tuning, reduction} ← tasks ← studies ← cli;  motion beside description (servo and above may use it);
+# plots: figures of result objects, imported only lazily by a ``plot`` method (or by tasks/studies/cli).
 # io (model file, atomic writes, CSV) needs only description: the stages from simulation up may use it,
 # their results write themselves through it (TimeSeries.to_csv → io.csv, save_figure → io.atomic).
 _CORE = {"foundation", "description", "catalogue", "lti", "mechanics", "robotics", "motion", "servo"}
@@ -51,7 +51,9 @@ ALLOWED: dict[str, set[str]] = {
     "reduction": _ANALYSES | {"simulation", "frequency"},
     "plots": _ANALYSES | {"simulation", "frequency", "tuning", "reduction"},
     "tasks": _ANALYSES | {"simulation", "frequency", "tuning", "reduction", "plots"},
-    "cli": _ANALYSES | {"simulation", "frequency", "tuning", "reduction", "plots", "tasks"},
+    # parameter studies (issue 14): above tasks, beside the CLI; only the CLI imports them
+    "studies": _ANALYSES | {"simulation", "frequency", "tuning", "reduction", "plots", "tasks"},
+    "cli": _ANALYSES | {"simulation", "frequency", "tuning", "reduction", "plots", "tasks", "studies"},
 }
 PLOT_METHOD = "plot"
 """The one allowed back-reference: a result's ``plot`` method imports ``plots/`` lazily."""
@@ -171,10 +173,10 @@ def violation(imp: Import) -> str | None:
         return None
     if dst == "cli":
         return "nothing imports cli"
-    if dst == "plots" and src not in ("tasks", "cli"):
+    if dst == "plots" and src not in ("tasks", "studies", "cli"):
         if imp.lazy and imp.function == PLOT_METHOD and not imp.type_only:
             return None
-        return "plots/ is imported only lazily, from inside a `plot` method (or by tasks/cli)"
+        return "plots/ is imported only lazily, from inside a `plot` method (or by tasks/studies/cli)"
     if dst not in ALLOWED[src]:
         return f"{src} may import only {', '.join(sorted(ALLOWED[src])) or 'nothing'}, not {dst}"
     return None
@@ -279,7 +281,8 @@ def test_no_import_cycle_but_the_plot_methods():
 
 _KNOWN = {"sicomat.errors", "sicomat.servo", "sicomat.servo.loop", "sicomat.frequency", "sicomat.frequency.loops",
           "sicomat.plots", "sicomat.plots.base", "sicomat.cli", "sicomat.cli.main", "sicomat.lti",
-          "sicomat.lti.plant", "sicomat.mechanics", "sicomat.mechanics.lumped"}
+          "sicomat.lti.plant", "sicomat.mechanics", "sicomat.mechanics.lumped", "sicomat.tasks",
+          "sicomat.tasks.analysis", "sicomat.studies", "sicomat.studies.pareto", "sicomat.plots.study"}
 
 
 @pytest.mark.parametrize("module, text, expected", [
@@ -300,6 +303,14 @@ _KNOWN = {"sicomat.errors", "sicomat.servo", "sicomat.servo.loop", "sicomat.freq
     ("sicomat.frequency.loops", "from ..servo.loop import ServoLoop\nfrom . import loops\n"
      "class R:\n    def plot(self):\n        from ..plots.base import save_figure\n", set()),
     ("sicomat.cli.main", "from ..plots.base import save_figure\n", set()),
+    # studies (issue 14): above tasks, beside the CLI; they may use plots and tasks, only the CLI uses them
+    ("sicomat.studies.pareto", "from ..plots.study import pareto_plot\nfrom ..tasks import analysis\n", set()),
+    ("sicomat.cli.main", "from ..studies.pareto import pareto_front\n", set()),
+    ("sicomat.studies.pareto", "from ..cli import main\n", {("sicomat.studies.pareto", "sicomat.cli.main")}),
+    ("sicomat.tasks.analysis", "def f():\n    from ..studies import pareto\n",
+     {("sicomat.tasks.analysis", "sicomat.studies.pareto")}),
+    ("sicomat.plots.study", "def plot():\n    from ..studies.pareto import pareto_front\n",
+     {("sicomat.plots.study", "sicomat.studies.pareto")}),
 ])
 def test_the_checker_catches_a_planted_violation(module, text, expected):
     found = violations(imports_of(text, module, False, _KNOWN))
