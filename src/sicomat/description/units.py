@@ -240,3 +240,31 @@ def _dimension_words(quantity) -> str:
     if not dims:
         return "dimensionless"
     return " * ".join(f"{k.strip('[]')}^{v:g}" if v != 1 else k.strip("[]") for k, v in dims.items())
+
+
+@lru_cache(maxsize=256)
+def si_unit(unit_text: str) -> str | None:
+    """The SI unit (as :data:`UNITS` writes it) of the quantity ``unit_text`` measures: ``"mm"`` → ``"m"``,
+    ``"t"`` → ``"kg"``, ``"kN/um"`` → ``"N/m"``; None when unknown, dimensionless or ambiguous (a study's table
+    labels its inputs with it).
+
+    >>> si_unit("kN/um"), si_unit("t"), si_unit("furlong/fortnight"), si_unit("1/s")   # 1/s: Hz or a gain?
+    ('N/m', 'kg', 'm/s', None)
+    """
+    import pint
+
+    ureg = _registry()
+    try:
+        quantity = ureg.Quantity(1, unit_text)
+    except (pint.errors.PintError, ValueError, TypeError, AttributeError, AssertionError):
+        return None
+    if quantity.dimensionless:
+        return None
+    found = []
+    for unit in UNITS.values():
+        if not unit.si or unit.si in found:
+            continue
+        if ureg.Quantity(1, unit.si).dimensionality == quantity.dimensionality \
+                and _radian_exponent(unit.si) == _radian_exponent(quantity):
+            found.append(unit.si)
+    return found[0] if len(found) == 1 else None

@@ -50,11 +50,8 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = (), *,
 
 def model_from_data(data: Mapping[str, Any], overrides: Iterable[str] = (), *, source: str | None = None,
                     catalogue: "Catalogue | None" = None, base_valid: bool = False) -> Machine:
-    """:func:`load_model` on a model file's data already read (the mapping TOML gives): the catalogue ids
-    resolved, the ``KEY=VALUE`` overrides applied, the whole validated; errors name ``source``. A study's
-    workers build each variant this way from the base file read once (``sicomat.studies``);
-    ``base_valid``: ``data`` without the overrides is known to validate (checked once before), so only
-    the result of the overrides is validated."""
+    """:func:`load_model` on data already read (a study's workers build each variant from the base file read
+    once); ``base_valid``: ``data`` alone is known to validate, only the result of the overrides is checked."""
     _check_depth(data, source)
     data = resolve_parts(data, catalogue, source=source)
     settings = [(item, *parse_override(item)) for item in overrides]

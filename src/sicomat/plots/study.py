@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from .base import new_figure
 from .study_table import (Colour, as_numbers, check_columns, colormap, colour_groups, column_label, counts,
-                          engineering_ticks, format_value, numbers, refuse, succeeded, unit_of)
+                          engineering_ticks, format_value, numbers, refuse, succeeded, table_units, unit_of)
 
 if TYPE_CHECKING:  # pragma: no cover
     import numpy as np
@@ -27,6 +27,7 @@ _MAX_LABELS = 15          # variant numbers written on a Pareto plot, at most
 
 
 # --------------------------------------------------------------------------- scatter matrix
+@table_units
 def scatter_matrix(table: "pd.DataFrame", columns: Sequence[str], *, color: str | None = None) -> "Figure":
     """Every pair of ``columns`` against each other, each column's histogram on the diagonal.
 
@@ -116,6 +117,7 @@ def _finish_colour(fig: "Figure", axes: Any, paint: Colour, mappable: Any) -> No
 
 
 # --------------------------------------------------------------------------- parallel coordinates
+@table_units
 def parallel_coordinates(table: "pd.DataFrame", columns: Sequence[str], *, color: str | None = None) -> "Figure":
     """One line per succeeded variant through one vertical axis per column, each column scaled to its own range
     (its minimum at the bottom, its maximum at the top, both written); a text or bool column is an axis of
@@ -188,6 +190,7 @@ def _scaled_axis(ax: "Axes", j: int, column: str, series: "pd.Series", ok: "np.n
 
 
 # --------------------------------------------------------------------------- histograms
+@table_units
 def histograms(table: "pd.DataFrame", columns: Sequence[str], *,
                thresholds: Mapping[str, tuple[str, float]] | None = None) -> "Figure":
     """One histogram per column with its 5 %, 50 % and 95 % quantiles marked (numpy's linear definition), and,
@@ -293,14 +296,19 @@ def _histogram(ax: "Axes", column: str, values: "np.ndarray", limit: tuple[str, 
 
 
 # --------------------------------------------------------------------------- Pareto plot
+@table_units
 def pareto_plot(table: "pd.DataFrame", x: str, y: str, *, senses: Sequence[str] = ("min", "max"),
-                front: Sequence[int] | "np.ndarray") -> "Figure":
+                front: Sequence[int] | "np.ndarray", feasible: "np.ndarray | None" = None,
+                objectives: int = 2) -> "Figure":
     """Every succeeded variant of ``y`` against ``x``, the non-dominated ones (``front``: row positions in
     ``table``, as :func:`sicomat.studies.pareto.pareto_front` returns them for ``table[[x, y]]``) highlighted,
     joined as a staircase (the edge of the region they dominate) and labelled with their variant number (at most
     15, spread along the front). ``senses``: ``"min"`` or ``"max"`` for ``x`` and ``y``. Computing the front is
-    the caller's (``plots/`` never computes). Raises ``ModelError`` on an unknown or non-numeric column, bad
-    senses, or a front row that is not a succeeded variant."""
+    the caller's (``plots/`` never computes). ``feasible`` (bool per row): the variants that meet the study's
+    constraints, among which the front was taken; the others are drawn faded. ``objectives``: how many the
+    front is non-dominated in; beyond the two drawn its points are not joined (in this plane they need not
+    form a staircase). Raises ``ModelError`` on an unknown or non-numeric column, bad senses, or a front row
+    that is not a succeeded variant."""
     import numpy as np
 
     from matplotlib import patheffects
@@ -316,12 +324,19 @@ def pareto_plot(table: "pd.DataFrame", x: str, y: str, *, senses: Sequence[str] 
     shown = ok & np.isfinite(xs) & np.isfinite(ys)
     fig = new_figure(figsize=(7.2, 5.0))
     ax = fig.subplots()
-    ax.scatter(xs[shown], ys[shown], s=16, color="0.6", edgecolors="none", label=f"variants ({int(shown.sum())})",
+    meets = shown if feasible is None else shown & np.asarray(feasible, dtype=bool)
+    fails = shown & ~meets
+    ax.scatter(xs[meets], ys[meets], s=16, color="0.45", edgecolors="none",
+               label=f"variants ({int(meets.sum())})" if feasible is None else f"meet the constraints ({int(meets.sum())})",
                gid="variants")
+    if fails.any():
+        ax.scatter(xs[fails], ys[fails], s=14, facecolors="none", edgecolors="0.75", linewidths=0.6,
+                   label=f"constraints not met ({int(fails.sum())})", gid="infeasible")
     on = rows[np.isfinite(xs[rows]) & np.isfinite(ys[rows])]
     on = on[np.lexsort((ys[on] if senses[1] == "min" else -ys[on], xs[on]))]
-    ax.plot(xs[on], ys[on], drawstyle="steps-post" if senses[0] == "min" else "steps-pre", color="tab:red",
-            linewidth=1.4, gid="staircase")
+    if objectives <= 2:
+        ax.plot(xs[on], ys[on], drawstyle="steps-post" if senses[0] == "min" else "steps-pre", color="tab:red",
+                linewidth=1.4, gid="staircase")
     ax.scatter(xs[on], ys[on], s=40, color="tab:red", edgecolors="black", linewidths=0.6, zorder=3,
                label=f"non-dominated ({len(on)})", gid="front")
     picked = np.unique(np.round(np.linspace(0, len(on) - 1, min(len(on), _MAX_LABELS))).astype(int)) \
@@ -344,7 +359,8 @@ def pareto_plot(table: "pd.DataFrame", x: str, y: str, *, senses: Sequence[str] 
     ax.legend(fontsize=8, loc="best")
     hidden = int((ok & ~(np.isfinite(xs) & np.isfinite(ys))).sum())
     note = f"\n{hidden} with an undefined or infinite value not drawn" if hidden else ""
-    ax.set_title(f"Pareto front: {len(rows)} non-dominated of {counts(ok)}{note}", fontsize=10)
+    among = f" in {objectives} objectives (two drawn)" if objectives > 2 else ""
+    ax.set_title(f"Pareto front: {len(rows)} non-dominated{among} of {counts(ok)}{note}", fontsize=10)
     return fig
 
 

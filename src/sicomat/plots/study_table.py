@@ -8,7 +8,8 @@ per study parameter (its key path), metrics ``<analysis>.<metric>`` (NaN when un
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
+from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -18,8 +19,9 @@ if TYPE_CHECKING:  # pragma: no cover
     import numpy as np
     import pandas as pd
     from matplotlib.axis import Axis
+    from matplotlib.figure import Figure
 
-__all__ = ["UNIT_SUFFIXES", "unit_of", "column_label", "format_value", "engineering_ticks", "refuse",
+__all__ = ["UNIT_SUFFIXES", "table_units", "unit_of", "column_label", "format_value", "engineering_ticks", "refuse",
            "check_columns", "check_column", "numeric_columns", "as_numbers", "numbers", "succeeded", "counts",
            "Colour", "colour_groups", "colormap"]
 
@@ -36,8 +38,33 @@ _WRAP = 24                # a label longer than this is broken at a dot
 _BOOL_COLOURS = {False: "tab:red", True: "tab:green"}
 
 
+_TABLE_UNITS: "ContextVar[Mapping[str, str]]" = ContextVar("study_table_units", default={})
+"""The units the table being drawn gives its columns (``table.attrs["units"]``), set by :func:`table_units`
+for the length of one figure's drawing."""
+
+
+def table_units(draw: "Callable[..., Figure]") -> "Callable[..., Figure]":
+    """Decorate a figure function of a table: while it draws, :func:`unit_of` reads the units the table's
+    ``attrs["units"]`` gives (a study's SI metrics and inputs, whose names carry no unit suffix)."""
+    import functools
+
+    @functools.wraps(draw)
+    def drawn(table: "pd.DataFrame", *args: Any, **kwargs: Any) -> "Figure":
+        token = _TABLE_UNITS.set(dict(getattr(table, "attrs", {}).get("units", {}) or {}))
+        try:
+            return draw(table, *args, **kwargs)
+        finally:
+            _TABLE_UNITS.reset(token)
+
+    return drawn
+
+
 def unit_of(column: str) -> str | None:
-    """The unit a column's name ends with (``UNIT_SUFFIXES``), or None."""
+    """The unit the table being drawn gives the column (:func:`table_units`), else the one its name ends
+    with (``UNIT_SUFFIXES``), else None."""
+    given = _TABLE_UNITS.get().get(column)
+    if given:
+        return given
     name = column.lower()
     for suffix in sorted(UNIT_SUFFIXES, key=len, reverse=True):
         if name.endswith(suffix):
@@ -58,7 +85,7 @@ def column_label(column: str, *, wrap: bool = True) -> str:
 
 def _prefixed(unit: str | None, magnitude: float) -> bool:
     """Whether values of this size in this unit read better with an SI prefix (2 µm rather than 2e-06 m)."""
-    return unit in _SI and math.isfinite(magnitude) and magnitude > 0.0 and not 1e-2 <= magnitude < 1e4
+    return unit in _SI and math.isfinite(magnitude) and magnitude > 0.0 and not 0.1 <= magnitude < 1e4
 
 
 def format_value(value: float, unit: str | None) -> str:

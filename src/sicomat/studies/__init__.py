@@ -87,6 +87,7 @@ class Study:
         as_csv = csv if csv is not None else self.plan.spec.format == "csv"
         path = self.out / ("results.csv" if as_csv else "results.parquet")
         table = engine.table
+        table.attrs["units"] = self.plan.units()
         if as_csv:
             atomic_write(path, lambda tmp: table.to_csv(tmp, index=False), kind="csv")
         else:

@@ -13,17 +13,18 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING, Any, Callable
 
 from ..errors import ModelError, SicomatError
+from .options import StudyOptions
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..description.machine import Machine
-    from .spec import StudySpec
 
-__all__ = ["METRICS", "UNITS", "SIZE_CHECKS", "metric_names", "check_analyses", "StudyOptions", "Chunk", "ChunkResult",
-           "run_chunk", "analysis_options"]
+__all__ = ["METRICS", "UNITS", "SIZE_CHECKS", "metric_names", "Chunk", "ChunkResult", "run_chunk",
+           "constraints_hold"]
 
 _LOOP = ("phase_margin_deg", "gain_margin_db", "crossover_hz", "bandwidth_hz", "delay_margin", "modulus_margin")
 
@@ -55,112 +56,28 @@ value (m, s, kg, ...; :data:`UNITS` says which), a suffix names a unit that is n
 ``_db``)."""
 
 UNITS: dict[str, str] = {
-    "modal.zeta1": "1", "modal.moving_mass": "kg (kg·m² on a rotary axis)",
-    "tune.Kp": "N·s/m or N·m·s/rad", "tune.Kp_normalized": "1/s", "tune.Ti": "s", "tune.Kv": "1/s",
+    "modal.zeta1": "1", "modal.moving_mass": "kg",
+    "tune.Kp_normalized": "1/s", "tune.Ti": "s", "tune.Kv": "1/s",
     **{f"margins.{loop}.delay_margin": "s" for loop in ("velocity", "position")},
     **{f"margins.{loop}.modulus_margin": "1" for loop in ("velocity", "position")},
     **{f"simulate.{k}": "m" for k in ("max_following_error", "rms_following_error", "final_error")},
     **{f"circle.{k}": "m" for k in ("circular_deviation", "max_contour_error", "rms_contour_error",
                                       "radial_deviation_min", "radial_deviation_max", "servo_mismatch")},
+    **{f"size.{c}{suffix}": unit for c, unit in (
+        ("peak_torque", "N·m"), ("rms_torque", "N·m"), ("coupling_torque", "N·m"), ("gearbox_torque", "N·m"),
+        ("peak_force", "N"), ("rms_force", "N"), ("back_emf", "V"), ("voltage", "V"), ("peak_current", "A"),
+        ("inertia_ratio", "1"), ("coupling_speed", "rad/s"), ("gearbox_input_speed", "rad/s"),
+        ("screw_critical_speed", "rad/s"), ("screw_max_speed", "rad/s")) for suffix in ("", ".limit")},
 }
 """The SI unit of each metric whose name carries none (the others: Hz, degrees, dB, true/false; ``size.*``
-in the check's unit: N or N·m, rad/s or m/s, V, A, 1)."""
+in the check's unit: N or N·m, rad/s or m/s, V, A, 1; ``tune.Kp`` in the model's physical unit, effort per
+axis velocity: N·s/m, N·m·s/m, N·m·s/rad). On a rotary axis (its coordinate in rad) ``modal.moving_mass`` is an
+inertia in kg·m² (the study's plan labels it so)."""
 
 
 def metric_names(analyses: list[str], machine: "Machine | None" = None, axis: str | None = None) -> list[str]:
     """The metric columns of ``analyses``, in the order they run."""
     return [name for analysis in analyses for name in METRICS[analysis]]
-
-
-@dataclass(frozen=True)
-class StudyOptions:
-    """The analyses' settings in SI units (parsed once, on the client, from the study file)."""
-
-    analyses: tuple[str, ...]
-    axis: str
-    tune: dict[str, float | None] = field(default_factory=dict)
-    move: float | None = None
-    max_velocity: float | None = None
-    max_acceleration: float | None = None
-    duration: float | None = None
-    circle_radius: float = 0.02
-    circle_feed: float = 1 / 6
-    circle_model: str | None = None
-    size_move: float | None = None
-    inertia_ratio_limit: float = 10.0
-    constraints: tuple[str, ...] = ()
-
-
-def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
-    """The study's ``[tune]``, ``[simulate]``, ``[circle]``, ``[size]`` tables in SI; a :class:`ModelError`
-    names the key of a value that does not parse."""
-    from ..description.units import UNITS, Unit, parse_quantity
-
-    def si(table: str, key: str, value: Any, unit: Unit) -> float | None:
-        if value is None:
-            return None
-        try:
-            return parse_quantity(value, unit)
-        except ValueError as exc:
-            raise ModelError(str(exc), source=source, path=f"{table}.{key}", value=value) from None
-
-    angular = Unit("rad/s", "an angular frequency (rad/s, or Hz)")
-    degrees = Unit("", "an angle in degrees (a plain number)")
-    decibels = Unit("", "a gain in dB (a plain number)")
-    t = spec.tune
-    tune = {"velocity_crossover": si("tune", "velocity_crossover", t.velocity_crossover, angular),
-            "velocity_phase_margin": si("tune", "velocity_phase_margin", t.velocity_phase_margin, degrees),
-            "position_phase_margin": si("tune", "position_phase_margin", t.position_phase_margin, degrees),
-            "position_crossover": si("tune", "position_crossover", t.position_crossover, angular),
-            "min_gain_margin": si("tune", "min_gain_margin", t.min_gain_margin, decibels)}
-    if tune["position_phase_margin"] is not None and tune["position_crossover"] is not None:
-        raise ModelError("give either position_phase_margin or position_crossover", source=source,
-                         path="tune.position_crossover")
-    for key in ("velocity_phase_margin", "position_phase_margin"):
-        if tune[key] is not None and not 0 < tune[key] < 180:   # type: ignore[operator]
-            raise ModelError("expected a phase margin between 0 and 180 degrees", source=source,
-                             path=f"tune.{key}", value=tune[key])
-    s = spec.simulate
-    move = si("simulate", "move", s.move, UNITS["length"])
-    duration = si("simulate", "duration", s.duration, UNITS["time"])
-    if duration is not None and duration <= 0:
-        raise ModelError("expected a duration > 0", source=source, path="simulate.duration", value=s.duration)
-    radius = si("circle", "radius", spec.circle.radius, UNITS["length"])
-    feed = si("circle", "feed", spec.circle.feed, UNITS["velocity"])
-    for key, value in (("radius", radius), ("feed", feed)):
-        if not (value is not None and value > 0):
-            raise ModelError(f"expected a {key} > 0", source=source, path=f"circle.{key}", value=value)
-    size_move = si("size", "move", spec.size.move, UNITS["length"])
-    return StudyOptions(tuple(spec.analyses), axis, tune, move,
-                        si("simulate", "max_velocity", s.max_velocity, UNITS["velocity"]),
-                        si("simulate", "max_acceleration", s.max_acceleration, UNITS["acceleration"]),
-                        duration, radius, feed, spec.circle.model, size_move,   # type: ignore[arg-type]
-                        spec.size.inertia_ratio_limit, tuple(spec.constraints))
-
-
-def check_analyses(spec: "StudySpec", machine: "Machine", axis: str, source: str) -> None:
-    """Refuse, before any work, analyses the base model cannot run (no controller, no move, one axis)."""
-    needs_loop = [a for a in spec.analyses if a in ("tune", "margins", "simulate", "size")]
-    if needs_loop:
-        from ..servo.loop import build_servo_loop
-
-        try:
-            build_servo_loop(machine, axis)
-        except SicomatError as exc:
-            raise ModelError(f"{', '.join(needs_loop)} need the axis's servo loop, which the base model cannot "
-                             f"build: {exc}", source=source, path="analyses") from None
-    if "simulate" in spec.analyses and spec.simulate.move is None and machine.axes[axis].trajectory is None:
-        raise ModelError(f"simulate needs a move: give [simulate] move or an [axes.{axis}.trajectory] in the base "
-                         "model", source=source, path="simulate.move")
-    if "size" in spec.analyses and spec.size.move is None and machine.axes[axis].trajectory is None:
-        raise ModelError(f"size needs a move: give [size] move or an [axes.{axis}.trajectory] in the base model",
-                         source=source, path="size.move")
-    if "circle" in spec.analyses and len(machine.axes) < 2:
-        raise ModelError("the circle test needs a machine of two axes or more; the base model has one",
-                         source=source, path="analyses")
-    if spec.circle.model not in (None, "decoupled") and machine.robot is None:
-        raise ModelError("the coupled and nonlinear circle models need a [robot] machine", source=source,
-                         path="circle.model", value=spec.circle.model)
 
 
 @dataclass(frozen=True)
@@ -207,20 +124,22 @@ def run_chunk(chunk: Chunk) -> ChunkResult:
     opts = chunk.options
     names = metric_names(list(opts.analyses))
     variants = [_Variant({"variant": chunk.first + i, **{n: None for n in names}}) for i in range(len(chunk.settings))]
+    def build(v: _Variant, settings: tuple[str, ...]) -> None:
+        v.machine = model_from_data(chunk.base_data, settings, source=chunk.base_source, base_valid=True)
+
     for v, settings in zip(variants, chunk.settings):
-        _attempt(v, "model", lambda v=v, s=settings: setattr(v, "machine", model_from_data(
-            chunk.base_data, s, source=chunk.base_source, base_valid=True)))
+        _attempt(v, "model", partial(build, v, settings))
     needs_loop = any(a in opts.analyses for a in ("tune", "margins", "simulate", "modal"))
     for v in variants:
         if v.ok and needs_loop:
-            _attempt(v, "model", lambda v=v: _build_loop(v, opts))
+            _attempt(v, "model", partial(_build_loop, v, opts))
     for analysis in opts.analyses:
         if analysis == "simulate":
             _simulate(variants, opts)
             continue
         for v in variants:
             if v.ok:
-                _attempt(v, analysis, lambda v=v, a=analysis: _ANALYSES[a](v, opts))
+                _attempt(v, analysis, partial(_ANALYSES[analysis], v, opts))
     rows = []
     for v in variants:
         v.row["error"] = v.error
@@ -234,7 +153,7 @@ def _limit_threads(n: int) -> None:
     try:
         import numba
 
-        numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+        numba.set_num_threads(max(1, min(n, int(getattr(numba.config, "NUMBA_NUM_THREADS", n)))))
     except (ImportError, ValueError):   # pragma: no cover - numba is a dependency
         pass
 
@@ -346,7 +265,7 @@ def _simulate(variants: list[_Variant], opts: StudyOptions) -> None:
             _simulate_group(members)
         except ModelError:   # structures differ (friction links, filters, delays): one call each
             for member in members:
-                _attempt(member[0], "simulate", lambda m=member: _simulate_group([m]))
+                _attempt(member[0], "simulate", partial(_simulate_group, [member]))
 
 
 def _simulate_group(members: list[tuple[_Variant, Any, float]]) -> None:

@@ -18,6 +18,7 @@ import math
 import os
 import time
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator
 
@@ -57,10 +58,12 @@ class EngineRun:
 
 
 def fingerprint(plan: "StudyPlan", chunk: int) -> str:
-    """The study's identity for ``resume``: what decides its table."""
+    """The study's identity for ``resume``: what decides its chunks' rows."""
     from .. import __version__
 
-    payload = {"study": plan.spec.model_dump(mode="json"), "base": json.dumps(plan.base_data, sort_keys=True,
+    # what decides the chunks' rows; the Pareto objectives, the output format and the names do not
+    study = plan.spec.model_dump(mode="json", exclude={"pareto", "format", "name", "description"})
+    payload = {"study": study, "base": json.dumps(plan.base_data, sort_keys=True,
                                                                               default=str),
                "chunk_size": chunk, "variants": plan.variants, "version": __version__}
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
@@ -102,9 +105,9 @@ def _prepare_out(out: Path, fp: str, resume: bool, plan: "StudyPlan", chunk: int
 
 
 def _chunks(plan: "StudyPlan", chunk: int, todo: list[int], threads: int | None) -> Iterator[Any]:
-    from .analyses import Chunk, analysis_options
+    from .analyses import Chunk
 
-    options = analysis_options(plan.spec, plan.axis, plan.source)
+    options = plan.options
     for i in todo:
         first, stop = i * chunk, min(plan.variants, (i + 1) * chunk)
         yield Chunk(i, first, tuple(tuple(plan.settings(v)) for v in range(first, stop)), plan.base_data,
@@ -124,11 +127,11 @@ def chunk_frame(plan: "StudyPlan", first: int, rows: list[dict[str, Any]]) -> "p
         columns[path] = values if values.dtype != object else pd.array(list(values), dtype="string")
     kinds = {name: kind for analysis in plan.spec.analyses for name, kind in METRICS[analysis].items()}
     for name in plan.metrics:
-        values = [row.get(name) for row in rows]
+        cells = [row.get(name) for row in rows]
         if kinds[name] == "b":
-            columns[name] = pd.array(values, dtype="boolean")
+            columns[name] = pd.array(cells, dtype="boolean")
         else:
-            columns[name] = np.array([np.nan if x is None else float(x) for x in values], dtype=float)
+            columns[name] = np.array([np.nan if x is None else float(x) for x in cells], dtype=float)
     columns["constraints_ok"] = pd.array([bool(row["constraints_ok"]) for row in rows], dtype="boolean")
     columns["error"] = pd.array([row["error"] for row in rows], dtype="string")
     return pd.DataFrame(columns)
@@ -183,7 +186,7 @@ def _run(client: Any, plan: "StudyPlan", chunk: int, todo: list[int], threads: i
             result = future.result()
             frame = chunk_frame(plan, result.index * chunk, result.rows)
             target = chunks_dir / CHUNK_PATTERN.format(result.index)
-            atomic_write(target, lambda tmp, f=frame: f.to_parquet(tmp, index=False), kind="parquet")
+            atomic_write(target, partial(_parquet, frame), kind="parquet")
             compute += result.compute_s
             finished += 1
             future.release()
@@ -193,6 +196,10 @@ def _run(client: Any, plan: "StudyPlan", chunk: int, todo: list[int], threads: i
             if not future.done():
                 future.cancel()
     return compute
+
+
+def _parquet(frame: "pandas.DataFrame", path: str) -> None:
+    frame.to_parquet(path, index=False)
 
 
 class _client:

@@ -94,10 +94,11 @@ class StudyResults:
             raise ModelError(f"the column {name!r} is not a number", path="columns", value=name)
         return name
 
-    def default_columns(self) -> list[str]:
-        """The numeric inputs and the headline metrics present: the scatter matrix's and parallel plot's."""
-        names = [c for c in self.inputs if _numeric(self.table[c]) and self.table[c].nunique() > 1]
-        names += [c for c in HEADLINE if c in self.table.columns and self.table[c].notna().any()]
+    def default_columns(self, categories: bool = False) -> list[str]:
+        """The inputs that vary (the numeric ones; with ``categories`` the catalogue ids too: the parallel
+        plot's axes of categories) and the headline metrics that vary."""
+        names = [c for c in self.inputs if (categories or _numeric(self.table[c])) and self.table[c].nunique() > 1]
+        names += [c for c in HEADLINE if c in self.table.columns and _varies(self.table[c])]
         return names
 
     def plot(self, kind: str = "scatter_matrix", columns: Sequence[str] | None = None, *,
@@ -112,16 +113,19 @@ class StudyResults:
             objectives = self.objectives()
             front = self.pareto()
             (x, sx), (y, sy) = objectives[0], objectives[1]
-            return plots.pareto_plot(self.table, x, y, senses=(sx, sy), front=front["variant"].to_numpy())
+            feasible = (self.table["constraints_ok"].fillna(False).astype(bool).to_numpy()
+                        if self.plan.spec.constraints else None)
+            return plots.pareto_plot(self.table, x, y, senses=(sx, sy), front=front["variant"].to_numpy(),
+                                     feasible=feasible, objectives=len(objectives))
         if kind == "histograms":
             cols = list(columns) if columns is not None else \
-                [c for c in SPREAD if c in self.table.columns and self.table[c].notna().any()]
+                [c for c in SPREAD if c in self.table.columns and _varies(self.table[c])]
             thresholds = {}
             for c in self.plan.spec.parsed_constraints():
                 if c.metric in cols and isinstance(c.bound, float) and c.operator in (">=", "<=", ">", "<"):
                     thresholds[c.metric] = (c.operator, c.bound)
             return plots.histograms(self.table, cols, thresholds=thresholds)
-        cols = list(columns) if columns is not None else self.default_columns()
+        cols = list(columns) if columns is not None else self.default_columns(kind == "parallel_coordinates")
         colour = color if color in self.table.columns else None
         if kind == "scatter_matrix":
             return plots.scatter_matrix(self.table, cols, color=colour)
@@ -137,7 +141,7 @@ class StudyResults:
                 continue
             if kind != "pareto" and kind != "histograms" and len(self.default_columns()) < 2:
                 continue
-            if kind == "histograms" and not any(c in self.table.columns for c in SPREAD):
+            if kind == "histograms" and not any(c in self.table.columns and _varies(self.table[c]) for c in SPREAD):
                 continue
             if self.table["error"].notna().all():
                 continue
@@ -167,6 +171,16 @@ class StudyResults:
                 "diverged": diverged,
                 "errors": [{"variant": int(r.variant), "error": str(r.error)} for r in errors.itertuples()],
                 **self.info}
+
+
+def _varies(series: "pandas.Series") -> bool:
+    """Whether a metric varies over the study by more than a part in 10^4 of its size: a margin the tuning
+    held at its target (80.0000 to 80.0003 degrees) says nothing in a scatter plot but its solver's tolerance."""
+    import numpy as np
+
+    values = series.to_numpy(dtype=float, na_value=np.nan)
+    values = values[np.isfinite(values)]
+    return bool(values.size) and float(np.ptp(values)) > 1e-4 * float(np.max(np.abs(values)))
 
 
 def _numeric(series: "pandas.Series") -> bool:

@@ -42,6 +42,7 @@ class Parameter:
     settings: tuple[Any, ...]
     inputs: np.ndarray
     drawn: bool
+    unit: str | None = None
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,18 @@ class StudyPlan:
     samples: int
     grid_shape: tuple[int, ...]
     metrics: tuple[str, ...] = field(default=())
+    rotary: bool = False
+    options: Any = None
+
+    def units(self) -> dict[str, str]:
+        """The SI unit of each column whose name carries none (inputs and metrics), for the figures' labels."""
+        from .analyses import UNITS
+
+        out = {p.path: p.unit for p in self.parameters if p.unit}
+        out.update({m: UNITS[m] for m in self.metrics if m in UNITS})
+        if self.rotary:
+            out["modal.moving_mass"] = "kg·m²"
+        return out
 
     @property
     def variants(self) -> int:
@@ -127,9 +140,9 @@ def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
     for k, p in enumerate(spec.parameters):
         params.append(_parameter(k, p, spec.seed, base_data, dumped, source, str(base)))
     drawn = [(k, p) for k, p in enumerate(spec.parameters) if p.drawn]
-    samples = {p.samples for _, p in drawn}
+    samples = {int(p.samples or 1) for _, p in drawn}
     if len(samples) > 1:
-        k = drawn[[p.samples for _, p in drawn].index(max(samples))][0]
+        k = drawn[[int(p.samples or 1) for _, p in drawn].index(max(samples))][0]
         raise ModelError(f"the distributions are drawn together: give them the same samples (found "
                          f"{', '.join(str(s) for s in sorted(samples))})", source=source, path=f"parameters.{k}.samples")
     plan = StudyPlan(spec, source, base, base_data, axis, tuple(params), samples.pop() if samples else 1,
@@ -137,12 +150,27 @@ def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
     if plan.variants > MAX_VARIANTS:
         raise ModelError(f"{plan.variants} variants; at most {MAX_VARIANTS} in one study", source=source,
                          path="parameters")
-    from .analyses import check_analyses, metric_names
+    from .analyses import metric_names
+    from .options import analysis_options, check_analyses
 
     metrics = metric_names(spec.analyses, machine, axis)
     check_analyses(spec, machine, axis, source)
+    options = analysis_options(spec, axis, source)
     _check_names(spec, metrics, [p.path for p in spec.parameters], source)
-    return StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics)})
+    return StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics), "rotary": _rotary(machine, axis),
+                              "options": options})
+
+
+def _rotary(machine: "Machine", axis: str) -> bool:
+    """Whether the axis's coordinate is an angle (its tool on rotational dofs only)."""
+    from ..servo.loop import build_servo_loop
+
+    try:
+        loop = build_servo_loop(machine, axis)
+    except SicomatError:
+        return False
+    kinds = {d.kind for d, t in zip(loop.mechanics.dofs, loop.tool) if t != 0}
+    return kinds == {"rotational"}
 
 
 def _check_names(spec: StudySpec, metrics: list[str], inputs: list[str], source: str) -> None:
@@ -191,9 +219,25 @@ def _parameter(k: int, p: ParameterSpec, seed: int, base_data: dict[str, Any], d
         settings = _draws(p, seed, k, lambda m, key, v=None: bad(m, key, v))
     if p.relative:
         factors = np.array([_number(s, lambda m, v=None: bad(m, way, v)) for s in settings])
-        settings = list(float(base_value) * factors)   # type: ignore[arg-type]
+        settings = list(float(base_value) * factors)
     inputs = _inputs(p, settings, base_data, source, base_source, where)
-    return Parameter(k, p.path, tuple(settings), inputs, p.drawn)
+    return Parameter(k, p.path, tuple(settings), inputs, p.drawn, _si_unit(p, settings, base_data))
+
+
+def _si_unit(p: ParameterSpec, settings: list[Any], base_data: dict[str, Any]) -> str | None:
+    """The SI unit of the input column (the table's label), from the unit the study file writes (or, for a
+    relative parameter, the base model file)."""
+    from ..description.units import si_unit
+
+    written = [value_at(base_data, p.path)] if p.relative else [p.mean, p.low] if p.drawn else settings[:1]
+    for value in written:
+        if isinstance(value, str):
+            try:
+                _, unit = split_quantity(value)
+            except ValueError:
+                return None
+            return si_unit(unit) if unit else None
+    return None
 
 
 def _number(value: Any, bad) -> float:
