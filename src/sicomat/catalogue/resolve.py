@@ -25,6 +25,11 @@ def use_folders(folders: "list[str] | tuple[str, ...]") -> None:
     _FOLDERS[:] = [str(f) for f in folders]
 
 
+def user_folders() -> tuple[str, ...]:
+    """The folders given by :func:`use_folders` (a study passes them to its workers, other processes)."""
+    return tuple(_FOLDERS)
+
+
 def default_catalogue(extra: "Sequence[str | os.PathLike[str]]" = ()) -> Catalogue:
     """The catalogue model files' ids are looked up in: shipped, ``SICOMAT_CATALOG``, :func:`use_folders`
     (then ``extra``: ``sicomat catalog list --catalog DIR``)."""

@@ -91,6 +91,7 @@ class Chunk:
     base_source: str
     options: StudyOptions
     threads: int | None = None
+    catalog_folders: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -124,8 +125,15 @@ def run_chunk(chunk: Chunk) -> ChunkResult:
     opts = chunk.options
     names = metric_names(list(opts.analyses))
     variants = [_Variant({"variant": chunk.first + i, **{n: None for n in names}}) for i in range(len(chunk.settings))]
+    catalogue = None
+    if chunk.catalog_folders:   # the client's `sicomat --catalog DIR` folders (the worker has no such state)
+        from ..catalogue.resolve import default_catalogue
+
+        catalogue = default_catalogue(chunk.catalog_folders)
+
     def build(v: _Variant, settings: tuple[str, ...]) -> None:
-        v.machine = model_from_data(chunk.base_data, settings, source=chunk.base_source, base_valid=True)
+        v.machine = model_from_data(chunk.base_data, settings, source=chunk.base_source, base_valid=True,
+                                    catalogue=catalogue)
 
     for v, settings in zip(variants, chunk.settings):
         _attempt(v, "model", partial(build, v, settings))

@@ -107,11 +107,13 @@ def _prepare_out(out: Path, fp: str, resume: bool, plan: "StudyPlan", chunk: int
 def _chunks(plan: "StudyPlan", chunk: int, todo: list[int], threads: int | None) -> Iterator[Any]:
     from .analyses import Chunk
 
-    options = plan.options
+    from ..catalogue.resolve import user_folders
+
+    options, folders = plan.options, tuple(str(Path(f).resolve()) for f in user_folders())
     for i in todo:
         first, stop = i * chunk, min(plan.variants, (i + 1) * chunk)
         yield Chunk(i, first, tuple(tuple(plan.settings(v)) for v in range(first, stop)), plan.base_data,
-                    str(plan.base_path), options, threads)
+                    str(plan.base_path), options, threads, folders)
 
 
 def chunk_frame(plan: "StudyPlan", first: int, rows: list[dict[str, Any]]) -> "pandas.DataFrame":

@@ -315,10 +315,10 @@ def _pair(a: Any, b: Any, name_a: str, name_b: str, bad) -> tuple[tuple[float, s
 
 
 def _catalogue(p: ParameterSpec, bad) -> list[Any]:
-    from ..catalogue.store import load_catalogue
+    from ..catalogue.resolve import default_catalogue
 
     try:
-        entries = load_catalogue().select(p.catalogue, p.where)
+        entries = default_catalogue().select(p.catalogue, p.where)
     except ModelError as exc:
         key = "catalogue" if exc.source == "KIND" else "where"
         raise bad(exc.message, key, exc.value) from None
