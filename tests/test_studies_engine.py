@@ -193,3 +193,41 @@ def test_resuming_a_changed_study_is_refused(tmp_path, reference):
     assert results.info["chunks"]["reused"] == 0
     assert not results.to_pandas()["axes.X.mechanics.bodies.load.mass"].equals(
         reference["axes.X.mechanics.bodies.load.mass"])
+
+
+def test_the_catalog_folders_of_the_command_line_reach_the_worker_processes(tmp_path, monkeypatch):
+    """``sicomat --catalog DIR study``: the workers (other processes, without the client's state) build each
+    variant with the folder's motor, as ``sicomat --catalog DIR modal`` does in one process."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sicomat.cli.main import app
+
+    monkeypatch.delenv("SICOMAT_CATALOG", raising=False)
+    parts = tmp_path / "parts"
+    parts.mkdir()
+    (parts / "servo-motor-400v-6nm.toml").write_text(   # ten times the shipped rotor inertia
+        'kind = "motor"\n[parameters]\nrotor_inertia = "70 kg*cm^2"\ntorque_constant = "1.6 N*m/A"\n'
+        'torque_constant_basis = "rms"\n[provenance]\nsource = "typical"\nrange = "a test entry"\n')
+    (tmp_path / "ballscrew_catalog.toml").write_text((EXAMPLES / "ballscrew_catalog.toml").read_text())
+    study = tmp_path / "study.toml"
+    study.write_text('base = "ballscrew_catalog.toml"\nanalyses = ["modal"]\n[[parameters]]\n'
+                     'path = "axes.X.mechanics.parts.4.mass"\nvalues = ["250 kg"]\n')
+    runner = CliRunner()
+    try:
+        modal = runner.invoke(app, ["--catalog", str(parts), "modal", str(tmp_path / "ballscrew_catalog.toml"),
+                                    "--json"])
+        shipped = runner.invoke(app, ["modal", str(tmp_path / "ballscrew_catalog.toml"), "--json"])
+        result = runner.invoke(app, ["--catalog", str(parts), "study", str(study), "--json", "--workers", "1",
+                                     "--no-figures"])
+    finally:
+        from sicomat.catalogue.resolve import use_folders
+
+        use_folders([])
+    assert result.exit_code == 0, result.output
+    first = [f for f in json.loads(modal.stdout)["undamped_hz"] if f > 0][0]
+    first_shipped = [f for f in json.loads(shipped.stdout)["undamped_hz"] if f > 0][0]
+    table = pd.read_parquet(json.loads(result.stdout)["results"])
+    assert table["modal.f1_hz"][0] == pytest.approx(first, rel=1e-12)     # the same model, the same arithmetic
+    assert abs(first - first_shipped) > 1e-3 * first_shipped              # and not the shipped motor's
