@@ -174,13 +174,13 @@ class StudyResults:
 
 
 def _varies(series: "pandas.Series") -> bool:
-    """Whether a metric varies over the study by more than a part in 10^4 of its size: a margin the tuning
+    """Whether a metric varies over the study by more than a part in 10^3 of its size: a margin the tuning
     held at its target (80.0000 to 80.0003 degrees) says nothing in a scatter plot but its solver's tolerance."""
     import numpy as np
 
     values = series.to_numpy(dtype=float, na_value=np.nan)
     values = values[np.isfinite(values)]
-    return bool(values.size) and float(np.ptp(values)) > 1e-4 * float(np.max(np.abs(values)))
+    return bool(values.size) and float(np.ptp(values)) > 1e-3 * float(np.max(np.abs(values)))
 
 
 def _numeric(series: "pandas.Series") -> bool:
