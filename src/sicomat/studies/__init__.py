@@ -1,8 +1,8 @@
-"""Parameter studies: variants of a machine model run at scale on Dask (``docs/studies.md``).
+"""Parameter studies: variants of a machine model run at scale on Dask (``docs/studies.md``)::
 
->>> from sicomat.studies import Study                                      # doctest: +SKIP
->>> results = Study("examples/studies/ballscrew_design.toml").run()        # doctest: +SKIP
->>> results.to_pandas(); results.pareto(); results.plot("pareto")          # doctest: +SKIP
+    from sicomat.studies import Study
+    results = Study("examples/studies/ballscrew_design.toml").run()   # checked against its base model, then run
+    results.to_pandas(); results.pareto(); results.plot("pareto")
 
 A study is a base model, parameters varied by the key paths of ``--set`` (grids, distributions, catalogue
 lists), the analyses run on every variant and optional constraints and Pareto objectives. :class:`Study`
