@@ -365,3 +365,90 @@ values = ["200 kg", "300 kg"]
         results.pareto()
     with pytest.raises(ModelError, match="no column 'modal.f7_hz'"):
         results.pareto(maximize=["modal.f7_hz"], minimize=["modal.f1_hz"])
+
+
+SMALL = """
+base = "paper_5m4s.toml"
+analyses = ["modal", "margins"]
+constraints = ["margins.velocity.phase_margin_deg >= 30"]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+range = ["150 kg", "400 kg", 6]
+[[parameters]]
+path = "axes.X.mechanics.couplings.load.stiffness"
+values = ["2e8 N/m", "5e8 N/m"]
+[pareto]
+maximize = ["margins.velocity.phase_margin_deg", "axes.X.mechanics.bodies.load.mass"]
+"""
+
+
+def test_the_pareto_front_and_the_figures_of_a_study(tmp_path, client):
+    """``pareto()`` is the definition applied to the feasible rows (written out here: no other feasible row at
+    least as good in both objectives and better in one); every figure is written, the Pareto plot highlighting
+    exactly the front."""
+    import matplotlib.image
+
+    from sicomat.studies import Study
+
+    results = Study(write_study(tmp_path, SMALL)).run(client, figures=True)
+    table = results.to_pandas()
+    feasible = table[table["constraints_ok"].astype(bool)]
+    a = feasible["margins.velocity.phase_margin_deg"].to_numpy()
+    b = feasible["axes.X.mechanics.bodies.load.mass"].to_numpy()
+    expected = {int(v) for v, x, y in zip(feasible["variant"], a, b)
+                if not any((a >= x) & (b >= y) & ((a > x) | (b > y)))}
+    front = results.pareto()
+    assert set(front["variant"]) == expected and 0 < len(expected) < len(feasible)
+    assert len(feasible) < len(table)                     # the constraint removes some: the front is among the rest
+    written = {Path(p).name for p in results.info["figures"]}
+    assert written == {"scatter_matrix.png", "parallel_coordinates.png", "histograms.png", "pareto.png"}
+    for name in written:
+        assert matplotlib.image.imread(tmp_path / "study.results" / name).shape[0] > 300
+    fig = results.plot("pareto")
+    highlighted = [c for c in fig.axes[0].collections if c.get_gid() == "front"][0]
+    assert len(highlighted.get_offsets()) == len(expected)
+    assert fig.axes[0].get_ylabel().startswith("axes.X.mechanics.bodies.load.mass (kg)")   # the study's units
+    summary = results.summary()
+    assert [v["variant"] for v in summary["pareto"]["variants"]] == list(front["variant"])
+
+
+def test_outputs_follow_the_output_policy_before_any_work(tmp_path):
+    """``--out`` a file, a results name taken by a folder, an output that is the base model: one line, exit 2,
+    and no chunk computed."""
+    from sicomat.cli.main import app
+
+    path = write_study(tmp_path, SMALL)
+    (tmp_path / "a-file").write_text("x")
+    result = runner.invoke(app, ["study", str(path), "--out", str(tmp_path / "a-file"), "--workers", "1"])
+    assert result.exit_code == 2 and "a-file" in result.output and "is a file" in result.output
+    out = tmp_path / "out"
+    (out / "results.parquet").mkdir(parents=True)
+    result = runner.invoke(app, ["study", str(path), "--out", str(out), "--workers", "1"])
+    assert result.exit_code == 2 and "results.parquet" in result.output and "not a regular file" in result.output
+    assert not list((out / "chunks").glob("*.parquet"))
+    inside = tmp_path / "inside"
+    inside.mkdir()
+    (inside / "paper_5m4s.toml").write_text((EXAMPLES / "paper_5m4s.toml").read_text())
+    (inside / "manifest.json").symlink_to(inside / "paper_5m4s.toml")   # an output that is the base model
+    (inside / "study.toml").write_text(SMALL)
+    result = runner.invoke(app, ["study", str(inside / "study.toml"), "--out", str(inside), "--workers", "1"])
+    assert result.exit_code == 2 and "would replace the base model" in result.output
+    assert (inside / "paper_5m4s.toml").read_text() == (EXAMPLES / "paper_5m4s.toml").read_text()
+
+
+def test_options_that_contradict_and_ctrl_c(tmp_path, monkeypatch):
+    from sicomat.cli.main import app
+    from sicomat.studies import Study
+
+    path = write_study(tmp_path, SMALL)
+    result = runner.invoke(app, ["study", str(path), "--workers", "2", "--scheduler", "tcp://127.0.0.1:8786"])
+    assert result.exit_code == 2 and "--workers" in result.output
+    result = runner.invoke(app, ["study", str(path), "--workers", "0"])
+    assert result.exit_code == 2 and "--workers" in result.output
+
+    def interrupted(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Study, "run", interrupted)
+    result = runner.invoke(app, ["study", str(path)])
+    assert result.exit_code == 130 and "--resume" in result.output and "Traceback" not in result.output

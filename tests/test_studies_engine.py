@@ -231,3 +231,30 @@ def test_the_catalog_folders_of_the_command_line_reach_the_worker_processes(tmp_
     table = pd.read_parquet(json.loads(result.stdout)["results"])
     assert table["modal.f1_hz"][0] == pytest.approx(first, rel=1e-12)     # the same model, the same arithmetic
     assert abs(first - first_shipped) > 1e-3 * first_shipped              # and not the shipped motor's
+
+
+def test_an_existing_cluster_by_its_address(tmp_path, reference):
+    """``--scheduler tcp://HOST:PORT``: the same table on a cluster started elsewhere; an address nobody
+    answers at is one line and exit status 2 (after the client's 5 s connection timeout)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sicomat.cli.main import app
+
+    runner = CliRunner()
+    c, client = cluster(1)
+    try:
+        result = bounded(lambda: runner.invoke(app, ["study", str(write(tmp_path)), "--scheduler",
+                                                     c.scheduler_address, "--json", "--no-figures"]))
+    finally:
+        client.close()
+        c.close()
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    assert payload["scheduler"] == c.scheduler_address and payload["workers"] == 1
+    pd.testing.assert_frame_equal(pd.read_parquet(payload["results"]), reference)
+    result = bounded(lambda: runner.invoke(app, ["study", str(write(tmp_path)), "--scheduler", "tcp://127.0.0.1:9",
+                                                 "--no-figures"]), 60)
+    assert result.exit_code == 2 and "--scheduler" in result.output and "tcp://127.0.0.1:9" in result.output
+    assert "Traceback" not in result.output

@@ -82,10 +82,11 @@ class Study:
 
             raise ModelError("expected a number of workers >= 1", path="workers", value=workers)
         start = time.perf_counter()
-        engine = run_plan(self.plan, self.out, client=client, scheduler=scheduler, workers=workers, resume=resume,
-                          progress=progress)
         as_csv = csv if csv is not None else self.plan.spec.format == "csv"
         path = self.out / ("results.csv" if as_csv else "results.parquet")
+        self._check_outputs(path, figures)
+        engine = run_plan(self.plan, self.out, client=client, scheduler=scheduler, workers=workers, resume=resume,
+                          progress=progress)
         table = engine.table
         table.attrs["units"] = self.plan.units()
         if as_csv:
@@ -100,3 +101,22 @@ class Study:
             written = results.write_figures(self.out)
             info["figures"] = [str(p) for p in written]
         return results
+
+    def _check_outputs(self, table: Path, figures: bool) -> None:
+        """Before any work: the output folder made, and every file the run will write there allowed by the
+        output policy (``docs/outputs.md``: a regular file or a new name, never the study or its base model)."""
+        from ..errors import OutputError
+        from ..io.atomic import check_output
+        from .results import FIGURES
+
+        if self.out.exists() and not self.out.is_dir():
+            raise OutputError(f"{self.out}: not a folder; --out names the folder that receives the study's table")
+        try:
+            (self.out / "chunks").mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"{self.out}: cannot be created ({exc.strerror or exc})") from None
+        inputs = {"the study file": self.path, "the base model": self.plan.base_path}
+        check_output(table, "parquet" if table.suffix == ".parquet" else "csv", inputs=inputs)
+        check_output(self.out / "manifest.json", "json", inputs=inputs)
+        for kind in FIGURES if figures else ():
+            check_output(self.out / f"{kind}.png", "figure", inputs=inputs)

@@ -78,6 +78,8 @@ def _prepare_out(out: Path, fp: str, resume: bool, plan: "StudyPlan", chunk: int
         chunks_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputError(f"{out}: cannot be created ({exc.strerror or exc})") from None
+    if not chunks_dir.is_dir():
+        raise OutputError(f"{chunks_dir}: not a folder; the study writes its chunks there")
     manifest = out / MANIFEST
     done: set[int] = set()
     old = None
@@ -221,7 +223,7 @@ class _client:
             return self.given, str(getattr(self.given, "scheduler", None) and self.given.scheduler.address), None
         if self.scheduler is not None:
             try:
-                client = Client(self.scheduler, timeout="10s")
+                client = Client(self.scheduler, timeout="5s")
             except (OSError, TimeoutError) as exc:
                 raise ModelError(f"cannot reach the Dask scheduler ({exc})", path="scheduler",
                                  value=self.scheduler) from None
