@@ -452,3 +452,36 @@ def test_options_that_contradict_and_ctrl_c(tmp_path, monkeypatch):
     monkeypatch.setattr(Study, "run", interrupted)
     result = runner.invoke(app, ["study", str(path)])
     assert result.exit_code == 130 and "--resume" in result.output and "Traceback" not in result.output
+
+
+def test_the_circle_test_after_tuning_equals_the_verbs_one_by_one(tmp_path, client):
+    """``tune`` then ``circle`` on the X-Y table: X is tuned in each variant and the circle runs on the tuned
+    machine, as ``tune --write`` then ``circle`` would (the same verbs: rtol 1e-12)."""
+    from sicomat import load_model, build_servo_loop, tune_frequency
+    from sicomat.description.units import UNITS, parse_quantity
+    from sicomat.studies import Study
+    from sicomat.tasks.analysis import tuned_machine
+    from sicomat.tasks.circle import circle_report
+    from sicomat.tuning import TuningTargets
+
+    (tmp_path / "xy_table.toml").write_text((EXAMPLES / "xy_table.toml").read_text())
+    path = tmp_path / "study.toml"
+    path.write_text('base = "xy_table.toml"\nanalyses = ["tune", "circle"]\naxis = "X"\n'
+                    '[[parameters]]\npath = "axes.Y.controller.Kv"\nvalues = ["30 1/s", "45 1/s"]\n'
+                    '[circle]\nradius = "50 mm"\nfeed = "2000 mm/min"\n')
+    table = Study(path).run(client).to_pandas()
+    assert table["error"].isna().all()
+    for kv, row in zip((30, 45), table.to_dict("records")):
+        machine = load_model(tmp_path / "xy_table.toml", [f"axes.Y.controller.Kv={kv}"])
+        tuned = tune_frequency(build_servo_loop(machine, "X"), TuningTargets(), suggest_notch=False).tuned
+        machine = tuned_machine(machine, "X", {"Kp": tuned.Kp, "Kp_normalized": tuned.Kp_normalized,
+                                               "Ti": tuned.Ti, "Kv": tuned.Kv})
+        # the feed as the study file's "2000 mm/min" reads (15 digits, as every model-file quantity): the last
+        # sample of the circle moves with the 16th digit of the feed (2e-4 of the deviation), so the same input
+        feed = parse_quantity("2000 mm/min", UNITS["velocity"])
+        test, payload, _ = circle_report(machine, 0.05, feed)
+        assert row["tune.Kv"] == pytest.approx(tuned.Kv, rel=1e-12)
+        assert row["circle.circular_deviation"] == pytest.approx(payload["circular_deviation"], rel=1e-12)
+        assert row["circle.max_contour_error"] == pytest.approx(payload["max_contour_error"], rel=1e-12)
+    # the Y gain changes the contour: the rows differ (the variants are not the base model twice)
+    assert table["circle.max_contour_error"][0] != table["circle.max_contour_error"][1]

@@ -291,10 +291,12 @@ def _simulate_group(members: list[tuple[_Variant, Any, float]]) -> None:
 def _circle(v: _Variant, opts: StudyOptions) -> None:
     from ..tasks.circle import circle_report
 
-    _, payload, _ = circle_report(v.machine, opts.circle_radius, opts.circle_feed, model=opts.circle_model)
-    for key in ("circular_deviation", "max_contour_error", "rms_contour_error", "radial_deviation_min",
-                "radial_deviation_max", "servo_mismatch"):
+    test, payload, _ = circle_report(v.machine, opts.circle_radius, opts.circle_feed, model=opts.circle_model)
+    for key in ("circular_deviation", "max_contour_error", "radial_deviation_min", "radial_deviation_max",
+                "servo_mismatch"):
         v.row[f"circle.{key}"] = _nan(payload.get(key))
+    if test.run is not None:
+        v.row["circle.rms_contour_error"] = test.run.to_dict()["rms_contour_error"]
     v.row["circle.stable"] = payload.get("stable")
 
 
