@@ -106,10 +106,11 @@ def _print(payload: dict[str, Any]) -> None:
 
     console = Console(highlight=False, soft_wrap=True)
     chunks = payload["chunks"]
+    where = f", on {payload['workers']} workers" if chunks["computed"] else ""
     console.print(f"{payload['variants']} variants: {payload['failed']} failed, {payload['constraints_met']} meet "
                   f"every constraint" + (f", {payload['diverged']} diverged" if payload.get("diverged") else "")
-                  + f"; {chunks['computed']} chunks computed, {chunks['reused']} reused, on "
-                  f"{payload['workers']} workers in {payload['elapsed_s']:.1f} s", markup=False)
+                  + f"; {chunks['computed']} chunks computed, {chunks['reused']} reused{where}, in "
+                  f"{payload['elapsed_s']:.1f} s", markup=False)
     console.print(f"table: {payload['results']}", markup=False)
     for path in payload.get("figures", []):
         console.print(f"figure: {path}", markup=False)

@@ -162,6 +162,8 @@ def run_plan(plan: "StudyPlan", out: Path, *, client: Any = None, scheduler: str
     n_workers = 0
     where = "none"
     if todo:
+        notify(progress, "starting a local Dask cluster" if client is None and scheduler is None
+               else "connecting to the Dask cluster", 0, None)
         with _client(client, scheduler, workers) as (dask_client, where, threads):
             n_workers = len(dask_client.scheduler_info().get("workers", {}))
             compute = _run(dask_client, plan, chunk, todo, threads, chunks_dir, fp, n_chunks, len(done), progress)
