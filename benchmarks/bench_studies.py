@@ -38,7 +38,12 @@ with 1 worker (how many times faster the study is per core); the parallel effici
 without the cluster's start (goal >= 0.8); Dask's overhead per variant, (W x wall - compute) / N, where
 compute is the sum of the chunks' compute seconds measured on the workers, as a fraction of the work per
 variant, compute / N (goal < 5 %); the cores the work used, compute / wall, and on a started cluster
-the CPU seconds of the workers and of this process per wall second.
+the CPU seconds of the workers and of this process per wall second. In an end-to-end run each worker's
+first chunk also holds its imports and the loading of the compiled kernels (1-2.5 s measured on this
+machine): they count as compute there, which raises the compute per variant and lowers the overhead
+fraction; the started-cluster runs (workers warmed first) give Dask's overhead proper. On a machine shared
+with other work, 2 workers cannot both have a whole core: the load average at the start and the end is
+reported beside the figures.
 """
 
 from __future__ import annotations
@@ -172,6 +177,8 @@ def one_variant(base: Path, settings: list[str], stages: dict[str, float] | None
     lap("margins")
     profile, _ = choose_profile(machine.axes[AXIS].trajectory, None, None, None, None)
     metrics = simulate(tuned_loop, profile, DURATION).metrics
+    if metrics is None:   # simulate gives the following-error figures of every move on the axis
+        raise RuntimeError("simulate() gave no following-error figures")
     row.update({"simulate.max_following_error": metrics.max_following_error,
                 "simulate.rms_following_error": metrics.rms_following_error,
                 "simulate.final_error": metrics.final_error})
@@ -283,12 +290,12 @@ def _warm_here(folder: Path) -> float:
     return time.perf_counter() - t0
 
 
-def _stats(samples: list[float]) -> dict[str, float]:
+def _stats(samples: list[float]) -> dict[str, Any]:
     return {"best": min(samples), "median": statistics.median(samples), "worst": max(samples), "n": len(samples),
             "samples": samples}
 
 
-def _ratio(a: dict[str, float], b: dict[str, float], k: float = 1.0) -> dict[str, float]:
+def _ratio(a: dict[str, Any], b: dict[str, Any], k: float = 1.0) -> dict[str, float]:
     """a / (k b), from the bests and from the medians."""
     return {"best": a["best"] / (k * b["best"]), "median": a["median"] / (k * b["median"])}
 
@@ -318,11 +325,11 @@ def run(quick: bool = False, variants: int | None = None, repeat: int | None = N
         runs: dict[str, list[dict[str, Any]]] = {f"{kind}_w{w}": [] for kind in ("end_to_end", "started")
                                                  for w in WORKERS}
         loops: list[tuple[float, dict[str, float]]] = []
-        reference = None
+        reference: Any = None
         checked = 0
         for r in range(rounds):
-            wall, stages, rows = plain_loop(base, settings)
-            loops.append((wall, stages))
+            loop_s, stages, rows = plain_loop(base, settings)
+            loops.append((loop_s, stages))
             for w in WORKERS:
                 for kind in ("end_to_end", "started"):
                     out = folder / f"out-{kind}-w{w}-r{r}"
@@ -339,8 +346,7 @@ def run(quick: bool = False, variants: int | None = None, repeat: int | None = N
         failed = int(reference["error"].notna().sum())
         targets_met_share = float(reference["tune.targets_met"].astype(float).mean())
     loop_wall = _stats([w for w, _ in loops])
-    loop_per = {k: v / n_loop if k != "n" and k != "samples" else v for k, v in loop_wall.items()}
-    loop_per["samples"] = [w / n_loop for w, _ in loops]
+    loop_per = _stats([w / n_loop for w, _ in loops])
     stage_ms = {s: 1e3 * min(st.get(s, 0.0) for _, st in loops) / n_loop for s in STAGES}
 
     figures: dict[str, Any] = {}
