@@ -6,9 +6,11 @@
 Benchmarks: ``bench_simulation`` (issue 3: closed-loop simulation vs python-control's
 ``input_output_response``, the bare compiled loop, a 1000-variant batch), ``bench_frequency`` (issue 5:
 frequency responses vs ``frequency_response``, tuning vs a python-control Nelder–Mead tuner),
-``bench_reduction`` (model reduction vs python-control's slycot reductions) and ``bench_robotics``
+``bench_reduction`` (model reduction vs python-control's slycot reductions), ``bench_robotics``
 (issue 13: inverse dynamics and the inertia matrix of a six-axis robot vs Pinocchio, one call and a
-10,000-state batch; its ratios are ours / Pinocchio's time). Ours and the peers run
+10,000-state batch; its ratios are ours / Pinocchio's time) and ``bench_studies`` (issue 14: a
+10,000-variant study of the 5M4S on 1 and 2 local Dask workers vs the same work in a plain loop over the
+public API; parallel efficiency and Dask's overhead per variant; ``--quick``: 400 variants). Ours and the peers run
 side by side in the same process; figures are wall times and ratios (how many times faster ours is).
 BLAS runs on one thread unless the caller set ``OPENBLAS_NUM_THREADS`` (or OMP/MKL) already.
 """
@@ -30,7 +32,7 @@ import traceback  # noqa: E402
 from typing import Any, Callable  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
-NAMES = ("simulation", "frequency", "reduction", "robotics")
+NAMES = ("simulation", "frequency", "reduction", "robotics", "studies")
 
 
 def _reduction(quick: bool) -> dict[str, Any]:
@@ -127,6 +129,28 @@ def _summary(results: dict[str, Any]) -> str:
                  q["batch_crba_vs_pin_loop"], "<= 1x", g["batch_crba_at_or_below_pin_per_state"])):
             rows.append([label, _common.fmt_s(ours["best"]), _common.fmt_s(peer["best"]),
                          f"{ratio['best']:.2f}x Pinocchio's time", target, met])
+    stu = results.get("studies", {}).get("result")
+    if stu:
+        st, q, g, n = stu["study"], stu["ratios"], stu["targets_met"], stu["case"]["variants"]
+        loop_ms = 1e3 * stu["loop"]["per_variant_s"]["best"]
+        rows.append([f"study: {n} variants, 1 worker (started cluster) vs plain loop, per variant",
+                     f"{1e3 * st['started_w1']['per_variant_s']['best']:.1f} ms", f"{loop_ms:.1f} ms",
+                     f"loop/study {q['loop_over_study_1_worker']['best']:.2f} (> 1: study faster per core)", "—", None])
+        rows.append([f"study: {n} variants, 2 workers (started cluster) vs plain loop, per variant",
+                     f"{1e3 * st['started_w2']['per_variant_s']['best']:.1f} ms", f"{loop_ms:.1f} ms",
+                     f"loop/study {q['loop_over_study_2_workers']['best']:.2f}", "—", None])
+        for label, key, run in (("end to end", "end_to_end", "end_to_end"),
+                                ("started cluster", "started_cluster", "started")):
+            rows.append([f"study: parallel efficiency T1/(2 T2), {label}",
+                         f"T2 {st[run + '_w2']['wall_s']['best']:.1f} s", f"T1 {st[run + '_w1']['wall_s']['best']:.1f} s",
+                         f"{q[f'parallel_efficiency_{key}']['best']:.2f}", ">= 0.8", g[f"parallel_efficiency_{key}"]])
+        for w in (1, 2):
+            f = st[f"started_w{w}"]
+            rows.append([f"study: Dask overhead per variant, {w} worker{'s' if w > 1 else ''} (started cluster)",
+                         f"{1e3 * f['dask_overhead_per_variant_s']['best']:.2f} ms",
+                         f"{1e3 * f['compute_per_variant_s']['best']:.1f} ms work",
+                         f"{100 * f['dask_overhead_fraction']['best']:.1f} %", "< 5 %",
+                         g[f"dask_overhead_started_w{w}"]])
     return _common.table(["benchmark", "ours", "peer", "ratio", "target", "met"], rows,
                          title="Summary (best-of times; see each table for medians and ranges)")
 
@@ -172,13 +196,14 @@ def main(argv: list[str] | None = None) -> int:
         print("OPENBLAS_CORETYPE is not set in this environment (numpy runs its own OpenBLAS kernel).")
     print("Timings are wall times on a shared machine: best of N interleaved runs, with median and worst beside.")
 
-    from benchmarks import bench_frequency, bench_robotics, bench_simulation
+    from benchmarks import bench_frequency, bench_robotics, bench_simulation, bench_studies
 
     benches: dict[str, tuple[Callable[[bool], dict[str, Any]], Callable[[dict[str, Any]], str]]] = {
         "simulation": (lambda q: bench_simulation.run(quick=q), bench_simulation.report),
         "frequency": (lambda q: bench_frequency.run(quick=q), bench_frequency.report),
         "reduction": (_reduction, _reduction_report),
         "robotics": (lambda q: bench_robotics.run(quick=q), bench_robotics.report),
+        "studies": (lambda q: bench_studies.run(quick=q), bench_studies.report),
     }
     results: dict[str, Any] = {}
     failed = []
