@@ -77,10 +77,15 @@ class Study:
         from ..io.atomic import atomic_write
         from .engine import run_plan
 
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-            from ..errors import ModelError
+        from ..errors import ModelError
 
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise ModelError("expected a number of workers >= 1", path="workers", value=workers)
+        if workers is not None and (client is not None or scheduler is not None):
+            raise ModelError("workers sizes the embedded local cluster; a given client or scheduler has its own",
+                             path="workers", value=workers)
+        if client is not None and scheduler is not None:
+            raise ModelError("give a client or a scheduler's address, not both", path="scheduler", value=scheduler)
         start = time.perf_counter()
         as_csv = csv if csv is not None else self.plan.spec.format == "csv"
         path = self.out / ("results.csv" if as_csv else "results.parquet")
