@@ -255,10 +255,15 @@ class Mechanics:
         return mechanics_plant(self, **kwargs)
 
     def modes(self) -> "ModalResult":
-        """Modal analysis; see :func:`sicomat.mechanics.modal.modal_analysis`."""
-        from .modal import modal_analysis
+        """Modal analysis; see :func:`sicomat.mechanics.modal.modal_analysis`. Computed once per mechanics (it
+        is immutable): the frequency grids of every loop response and the tuning ask for it again and again."""
+        cached = self.__dict__.get("_modes")
+        if cached is None:
+            from .modal import modal_analysis
 
-        return modal_analysis(self)
+            cached = modal_analysis(self)
+            object.__setattr__(self, "_modes", cached)
+        return cached
 
 
 def _stiffness_links(K: np.ndarray, dofs: tuple[Dof, ...]) -> tuple[Link, ...]:
