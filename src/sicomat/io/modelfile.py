@@ -19,7 +19,7 @@ from ..catalogue.resolve import resolve_parts
 if TYPE_CHECKING:  # pragma: no cover
     from ..catalogue.store import Catalogue
 
-__all__ = ["load_model", "model_from_data", "machine_from_dict", "save_model", "model_text", "dump_model", "parse_override",
+__all__ = ["load_model", "model_from_data", "value_at", "machine_from_dict", "save_model", "model_text", "dump_model", "parse_override",
            "with_overrides"]
 
 _UNION_TAGS = union_tags()  # key of a block table → its registered types (description/registry.py)
@@ -50,8 +50,7 @@ def load_model(path: str | os.PathLike, overrides: Iterable[str] = (), *,
 
 def model_from_data(data: Mapping[str, Any], overrides: Iterable[str] = (), *, source: str | None = None,
                     catalogue: "Catalogue | None" = None, base_valid: bool = False) -> Machine:
-    """:func:`load_model` on data already read (a study's workers build each variant from the base file read
-    once); ``base_valid``: ``data`` alone is known to validate, only the result of the overrides is checked."""
+    """:func:`load_model` on data already read; ``base_valid``: ``data`` alone validates, check only the result."""
     _check_depth(data, source)
     data = resolve_parts(data, catalogue, source=source)
     settings = [(item, *parse_override(item)) for item in overrides]
@@ -119,14 +118,15 @@ def _apply_settings(data: Mapping[str, Any], settings: list[tuple[str, Any, str]
     for key, value, source in ordered:
         if _PART_ID.match(key):
             path = key.rsplit(".", 1)[0]
-            part = _get_path(out, path)
+            part = value_at(out, path)
             if isinstance(part, dict):
                 out = _set_path(out, path, {k: v for k, v in part.items() if k in ("kind", "name")}, source)
         out = _set_path(out, key, value, source)
     return out
 
 
-def _get_path(data: Any, key: str) -> Any:
+def value_at(data: Any, key: str) -> Any:
+    """The value at a dotted key path of model-file data (a ``--set`` key), None when there is none."""
     node = data
     for part in key.split("."):
         if isinstance(node, dict):

@@ -19,12 +19,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import ModelError, SicomatError
+from ..io.modelfile import value_at
 from .spec import MAX_VARIANTS, ParameterSpec, StudySpec, split_quantity
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..description.machine import Machine
 
-__all__ = ["Parameter", "StudyPlan", "plan_study", "value_at"]
+__all__ = ["Parameter", "StudyPlan", "plan_study"]
 
 CHECKED_LEVELS = 64
 """Grid levels of one parameter validated one by one against the base model before any work (all of
@@ -107,19 +108,6 @@ def _toml(value: Any) -> str:
     if isinstance(value, (int, float, np.floating, np.integer)):
         return repr(float(value)) if isinstance(value, (float, np.floating)) else str(int(value))
     return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def value_at(data: Any, path: str) -> Any:
-    """The value at a dotted key path of plain data (None when there is none)."""
-    node = data
-    for part in path.split("."):
-        if isinstance(node, dict):
-            node = node.get(part)
-        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
-            node = node[int(part)]
-        else:
-            return None
-    return node
 
 
 def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
