@@ -39,6 +39,10 @@ MAX_EVENTS = 8
 
 _OK, _DIVERGED_STATE, _DIVERGED_RECORD = 0, 1, 2
 
+_njit_unrefcounted = njit(cache=True, error_model="numpy", _nrt=False)  # type: ignore[call-overload]
+"""The compilation of the kernel's allocation-free core (:func:`_simulate_steps`, :func:`_advance_with_events`,
+:func:`_resolve`): without numba's reference counting (``_nrt=False``), see :func:`_simulate_steps`."""
+
 _u = np.uint64
 """Index cast used in the kernel: numba skips its negative-index wrap-around for unsigned indices."""
 
@@ -280,7 +284,7 @@ def _holding_forces(Lz, c, stuck, z, hold):
             hold[j] = _holding_force(Lz, c, j, z)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@_njit_unrefcounted
 def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     """Stick / slip decision at an event; projects the state, updates ``z``'s friction part.
 
@@ -462,7 +466,7 @@ def _taylor_clear(z, g0, xi, K3, D, c, dt, stuck, dirn, static, nx):
     return True
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@_njit_unrefcounted
 def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, coulomb, nx, nu,
                          max_events, g0, g1, PsiT, KU, KP, K3, D, pair, xi, step, end_event):
     """Advance ``z`` over one base step whose full-step candidate ``zc`` (event values ``g1``,
@@ -723,7 +727,7 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
         np.zeros(nf), np.zeros(nx), np.zeros(nx), np.zeros(nu))
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@_njit_unrefcounted
 def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
                     op_code, op_period, op_ip, op_fp, idx, fdata, table,
                     in_slots, out_slots, fr_slots, rec_slots, n_slots,
