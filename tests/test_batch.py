@@ -32,8 +32,8 @@ def case():
     return machine, loop, profile, loops
 
 
-def _programs(loops, profile, duration=0.3):
-    return loop_programs(loops, profile, duration)
+def _programs(loops, profile, duration=0.3, nonlinear=True):
+    return loop_programs(loops, profile, duration, nonlinear=nonlinear)
 
 
 def test_a_variant_is_bit_identical_alone_in_a_batch_and_on_any_thread_count(case):
@@ -147,3 +147,24 @@ def test_diverged_variants_have_nan_figures(case):
         values = getattr(batch, name)
         assert np.isfinite(values[0]) or name == "settling_time"
         assert np.isnan(values[1])
+
+
+def test_a_batch_prepared_in_pieces_gives_each_variant_its_own_results(case):
+    from sicomat.simulation import kernel
+
+    _, loop, profile, _ = case
+    factors = np.linspace(0.7, 1.3, 3 * kernel.MIN_PIECE + 5)      # several pieces, the last one short
+    loops = [loop.with_gains(Kp=loop.Kp * f) for f in factors]
+    programs, n = _programs(loops, profile, 0.06)
+    assert kernel._piece_size(len(programs), 2) < len(programs)      # really pipelined
+    piecewise = run_batch(programs, n, record=["sensor.scale", "current.command"], threads=2)
+    whole = run_batch(programs, n, record=["sensor.scale", "current.command"], threads=1)
+    assert_array_equal(piecewise.records, whole.records)
+    assert_array_equal(piecewise.final_states, whole.final_states)
+    for v in (0, kernel.MIN_PIECE, len(programs) - 1):
+        assert_array_equal(run_batch([programs[v]], n, record=["sensor.scale", "current.command"]).records[0],
+                           piecewise.records[v])
+    # a variant of another structure in a later piece: the batch is refused, as a whole
+    other, _ = _programs([loop], step_profile(1e-4), 0.06, nonlinear=False)
+    with pytest.raises(ModelError, match=f"variant {len(programs) - 1} does not have the structure"):
+        run_batch(programs[:-1] + other, n, threads=2)

@@ -972,6 +972,76 @@ def _in_threads(work: Callable[[int, int], object], n: int, threads: int) -> Non
             future.result()
 
 
+PIECES = 16
+"""Pieces a batch on several threads is prepared in (see :func:`_pipelined`): the threads wait only for
+the first one (a sixteenth of the preparation) and the preparation of each next one overlaps the kernel."""
+
+MIN_PIECE = 16
+"""Fewest variants in a piece of a pipelined batch (smaller batches are prepared in one piece)."""
+
+
+def _piece_size(n: int, threads: int) -> int:
+    """Variants per prepared piece of a batch of ``n`` on ``threads`` threads (``n``: one piece)."""
+    if threads <= 1 or n < 2 * MIN_PIECE:
+        return n
+    return max(MIN_PIECE, -(-n // PIECES))
+
+
+def _pipelined(prepare: Callable[[int, int], tuple], kernel: Callable[..., object], n: int, size: int,
+               threads: int) -> None:
+    """``kernel(*prepare(a, b), first, last)`` over pieces ``[a, b)`` of ``0 .. n``: each piece is
+    prepared in the calling thread and its ranges queued to ``threads`` threads, which run them while
+    the next pieces are prepared. An error while preparing a piece (a variant of another structure)
+    cancels what is queued, waits for what runs and is raised (the outputs are the caller's to drop)."""
+    step = max(1, -(-n // (threads * CHUNKS_PER_THREAD)))
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="sicomat-batch") as pool:
+        futures = []
+        try:
+            for a in range(0, n, size):
+                b = min(a + size, n)
+                args = prepare(a, b)
+                futures += [pool.submit(kernel, *args, first, min(first + step, b - a))
+                            for first in range(0, b - a, step)]
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
+        for future in futures:
+            future.result()
+
+
+def _batch_arguments(programs: Sequence[HybridProgram], first: int, last: int, reference, rec_sel,
+                     patterns, levels: int, step: float) -> tuple:
+    """The kernel's arguments (all but the common head and the output rows) for the variants
+    ``first .. last - 1``: lowered with the block patterns of the whole batch (so that their structure
+    is variant 0's, ``reference``), checked, and discretised (equal continuous parts once)."""
+    part = programs[first:last]
+    lows = [lower(p, rec_sel, patterns) for p in part]
+    key = reference.structure_key()
+    for v, (p, low) in enumerate(zip(part, lows), start=first):
+        if p.step != step:
+            raise ModelError(f"variant {v}: base step differs from variant 0", value=p.step)
+        if low.structure_key() != key:
+            what = next(name for name, ref in reference.struct.items()
+                        if low.struct[name].shape != ref.shape
+                        or not np.array_equal(low.struct[name], ref))
+            raise ModelError(f"variant {v} does not have the structure of variant 0 ({what} "
+                             f"differs)")
+    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices(part, reference.links, levels)
+    nums = {name: np.ascontiguousarray(np.stack([low.nums[name] for low in lows]))
+            for name in reference.nums if name != "table"}
+    tables, tix = _shared([low.nums["table"] for low in lows])
+    s = reference.struct
+    # the outputs' sparsity pattern is this piece's: a coefficient zero in every variant of a piece adds
+    # only +-0 where another piece keeps it (see run), so a variant's results do not depend on its piece
+    out_ptr, out_col, out_val = sparse_outputs(nums["CD"])
+    return (s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
+            nums["fdata"], nums["xb0"], tables, tix, int(s["shapes"][5]), s["in_slots"],
+            s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, PsiT, KU,
+            KP, K3, D, pair, GH, kd, float(step), cont,
+            out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"])
+
+
 def _shared(arrays: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Distinct arrays (by identity: the programs of one setpoint table share its array) stacked,
     and each one's index among them."""
@@ -1172,42 +1242,34 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
     n_threads = batch_threads(threads)
     n_steps, every = int(n_steps), int(record_every)
     rec_sel = _record_slots(programs[0], record)
-    patterns = block_patterns(programs)
-    lows = [lower(p, rec_sel, patterns) for p in programs]
-    first = lows[0]
     step = programs[0].step
-    key = first.structure_key()
-    for v, (p, low) in enumerate(zip(programs, lows)):
-        if p.step != step:
-            raise ModelError(f"variant {v}: base step differs from variant 0", value=p.step)
-        if low.structure_key() != key:
-            what = next(name for name, ref in first.struct.items()
-                        if low.struct[name].shape != ref.shape
-                        or not np.array_equal(low.struct[name], ref))
-            raise ModelError(f"variant {v} does not have the structure of variant 0 ({what} "
-                             f"differs)")
-    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices(programs, first.links, int(levels))
-    nums = {key: np.ascontiguousarray(np.stack([low.nums[key] for low in lows]))
-            for key in first.nums if key != "table"}
-    tables, tix = _shared([low.nums["table"] for low in lows])
-    s = first.struct
-    out_ptr, out_col, out_val = sparse_outputs(nums["CD"])
+    patterns = block_patterns(programs)
     nv = len(programs)
     n_rec = -(-n_steps // every)
+    limit_abs, factor = _divergence_args(divergence_limit)
+    head = (n_steps, every, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP)
+    reference = lower(programs[0], rec_sel, patterns)
+    s = reference.struct
     # rows from a divergence on are zeroed below; the others are all written by the kernel
     rec = np.empty((nv, n_rec, s["rec_slots"].size))
-    x_final = np.zeros((nv, first.nx))
+    x_final = np.zeros((nv, reference.nx))
     status = np.zeros(nv, dtype=np.int64)
     k_bad = np.zeros(nv, dtype=np.int64)
-    limit_abs, factor = _divergence_args(divergence_limit)
-    args = (n_steps, every, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP,
-            s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
-            nums["fdata"], nums["xb0"], tables, tix, int(s["shapes"][5]), s["in_slots"],
-            s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, PsiT, KU,
-            KP, K3, D, pair, GH, kd, float(step), cont,
-            out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"], rec,
-            x_final, status, k_bad)
-    _in_threads(lambda first, last: _simulate_batch(*args, first, last), nv, n_threads)
+
+    def prepare(first: int, last: int) -> tuple:
+        """The kernel's arguments for the variants ``first .. last - 1`` (lowered, checked against
+        variant 0's structure, discretised) and their output rows."""
+        return _batch_arguments(programs, first, last, reference, rec_sel, patterns, int(levels), step) + (
+            rec[first:last], x_final[first:last], status[first:last], k_bad[first:last])
+
+    size = _piece_size(nv, n_threads)
+    if size >= nv:
+        args = head + prepare(0, nv)
+        _in_threads(lambda a, b: _simulate_batch(*args, a, b), nv, n_threads)
+    else:
+        # pieces: each one prepared in this thread (Python, under the GIL) while the threads run the
+        # compiled kernel (without the GIL) on the pieces before it
+        _pipelined(lambda a, b: head + prepare(a, b), _simulate_batch, nv, size, n_threads)
     diverged_step = np.where(status != _OK, k_bad, -1)
     for v in np.flatnonzero(status != _OK).tolist():
         if on_divergence == "raise":
