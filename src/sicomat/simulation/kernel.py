@@ -1265,7 +1265,8 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
     size = _piece_size(nv, n_threads)
     if size >= nv:
         args = head + prepare(0, nv)
-        _in_threads(lambda a, b: _simulate_batch(*args, a, b), nv, n_threads)
+        compiled: Callable[..., object] = _simulate_batch
+        _in_threads(lambda a, b: compiled(*args, a, b), nv, n_threads)
     else:
         # pieces: each one prepared in this thread (Python, under the GIL) while the threads run the
         # compiled kernel (without the GIL) on the pieces before it
