@@ -88,6 +88,9 @@ def test_batch_metrics_are_simulates_variant_by_variant(case):
     duration = 0.3
     batch = simulate_batch(loops, profile, duration)
     assert not batch.diverged.any()
+    serial = simulate_batch(loops, profile, duration, threads=1)
+    for name in ("max_following_error", "overshoot_percent", "settling_time", "max_effort"):
+        assert_array_equal(getattr(serial, name), getattr(batch, name))
     settled = 0
     for v, loop in enumerate(loops):
         series = simulate(loop, profile, duration)

@@ -251,14 +251,16 @@ class BatchMetrics:
 
 
 def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", duration: float, *,
-                   nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> BatchMetrics:
+                   nonlinear: bool = True, progress: "ProgressCallback | None" = None,
+                   threads: int | None = None) -> BatchMetrics:
     """Simulate many variants of one loop (other gains, masses, stiffnesses, limits, ...) in one
     compiled call and return each variant's figures (:class:`BatchMetrics`).
 
     The variants must share the loop's structure (same blocks, sample periods, delays, filters
     and friction links); only numbers may differ. Only the position sensor and the applied current
-    are recorded. The variants are shared over numba's threads (:func:`~sicomat.simulation.kernel.run_batch`);
-    each one's figures are the same whatever the thread count and the other variants.
+    are recorded. The variants are shared over ``threads`` threads (default: numba's thread count in the
+    calling thread, see :func:`~sicomat.simulation.kernel.run_batch`); each one's figures are the same
+    whatever the thread count and the other variants.
     With ``progress`` (:mod:`sicomat.progress`) the variants run in about twenty compiled calls
     instead of one, each reported when it returns (the figures are the same: variants are independent).
     """
@@ -281,7 +283,7 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dur
     parts = []
     for first in range(0, len(programs), chunk):
         parts.append(run_batch(programs[first: first + chunk], n_steps, record=[sensors[0], int(applied)],
-                               on_divergence="flag"))
+                               on_divergence="flag", threads=threads))
         notify(progress, task, min(first + chunk, len(programs)), len(programs))
     wall = _time.perf_counter() - start
     result = parts[0]
