@@ -171,3 +171,17 @@ def test_a_batch_prepared_in_pieces_gives_each_variant_its_own_results(case):
     other, _ = _programs([loop], step_profile(1e-4), 0.06, nonlinear=False)
     with pytest.raises(ModelError, match=f"variant {len(programs) - 1} does not have the structure"):
         run_batch(programs[:-1] + other, n, threads=2)
+
+
+def test_batches_run_at_once_from_several_threads_are_independent(case):
+    # as in a threaded Dask worker: concurrent run_batch calls, each on its own threads
+    from concurrent.futures import ThreadPoolExecutor
+
+    _, _, profile, loops = case
+    programs, n = _programs(loops, profile, 0.05)
+    alone = run_batch(programs, n, record=["sensor.scale"], threads=1)
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        results = list(pool.map(lambda k: run_batch(programs[k:] + programs[:k], n, record=["sensor.scale"],
+                                                    threads=2), range(3)))
+    for k, res in enumerate(results):
+        assert_array_equal(res.records, np.roll(alone.records, -k, axis=0))
