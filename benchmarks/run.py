@@ -85,6 +85,11 @@ def _summary(results: dict[str, Any]) -> str:
         b = sim["batch"]
         rows.append([f"simulation: batch of {b['variants']} variants, end to end", f"{b['end_to_end_s']['best']:.2f} s",
                      "—", f"run_batch alone {b['run_batch_s']['best']:.2f} s", "< 5 s", t["batch_under_5_s_end_to_end"]])
+        if "vs_bare_over_cores" in b:
+            rows.append([f"simulation: batch of {b['variants']} vs {b['variants']} bare loops over {b['cores']} cores",
+                         f"{b['end_to_end_s']['best']:.2f} s", f"{b['bare_limit_s']['best']:.2f} s",
+                         f"{b['vs_bare_over_cores']['best']:.1f}x slower", "<= 2.5x",
+                         t["batch_within_2_5x_of_bare_over_cores"]])
     fr = results.get("frequency", {}).get("result")
     if fr:
         a, tu, g = fr["response"], fr["tuning"], fr["goals_met"]

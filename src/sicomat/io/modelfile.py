@@ -200,15 +200,19 @@ def _toml_limit(exc: BaseException) -> str:
 def _check_depth(data: Any, source: str | None, prefix: str = "") -> None:
     """Refuse tables and arrays nested deeper than :data:`MAX_DEPTH`, naming the key path (iterative:
     no recursion on the user's nesting)."""
+    # only tables and arrays are visited (a leaf cannot be too deep), and a child's key path is written only
+    # for those: the check runs on every model variant of a study
     stack = [(data, prefix, 0)]
     while stack:
         node, where, depth = stack.pop()
-        items = list(node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ())
-        if items and depth >= MAX_DEPTH:
+        if not node or not isinstance(node, (dict, list)):
+            continue
+        if depth >= MAX_DEPTH:
             raise ModelError(f"nested too deeply (more than {MAX_DEPTH} levels of tables and arrays)",
                              source=source, path=where or None)
-        for k, child in items:
-            stack.append((child, f"{where}.{k}" if where else str(k), depth + 1))
+        for k, child in (node.items() if isinstance(node, dict) else enumerate(node)):
+            if isinstance(child, (dict, list)):
+                stack.append((child, f"{where}.{k}" if where else str(k), depth + 1))
 
 
 def _set_path(data: Mapping[str, Any], key: str, value: Any, source: str) -> dict[str, Any]:

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..progress import notify
-from .timeseries import StepFigures, StepMetrics, TimeSeries, step_figures, step_metrics
+from .timeseries import StepFigures, StepMetrics, TimeSeries, step_figures, step_figures_many, step_metrics
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
@@ -218,14 +218,24 @@ def named_signals(loop: "ServoLoop", program, records: np.ndarray, fine_setpoint
 
 @dataclass(frozen=True, eq=False)
 class BatchMetrics:
-    """Figures of each variant of a batch (arrays over the variants, metres) and their run time.
+    """Figures of each variant of a batch (arrays over the variants) and their run time.
 
-    ``diverged`` flags the variants whose simulation blew up (their figures are NaN).
+    The following errors are in metres; ``overshoot_percent`` and ``settling_time`` (s) are those of
+    :func:`~sicomat.simulation.timeseries.step_metrics` for :func:`simulate` (the same band around the
+    final setpoint, the same start: the move's first break), NaN where a run has none (still outside
+    the band at its end, or a move that does not end: distance 0); ``max_effort`` is the peak of the
+    effort the drive is told to apply, ``kt · |current.applied|`` (N for a force actuator, N·m for a
+    torque one: after the computation delay, the current limits and the quantizer; the drive's current
+    loop follows it), the figure a motor's peak effort bounds. ``diverged`` flags the variants whose
+    simulation blew up (their figures are NaN).
     """
 
     max_following_error: np.ndarray
     rms_following_error: np.ndarray
     final_error: np.ndarray
+    overshoot_percent: np.ndarray
+    settling_time: np.ndarray
+    max_effort: np.ndarray
     diverged: np.ndarray
     wall_time_s: float
 
@@ -235,42 +245,61 @@ class BatchMetrics:
 
         return pd.DataFrame({"max_following_error": self.max_following_error,
                              "rms_following_error": self.rms_following_error,
-                             "final_error": self.final_error, "diverged": self.diverged})
+                             "final_error": self.final_error, "overshoot_percent": self.overshoot_percent,
+                             "settling_time": self.settling_time, "max_effort": self.max_effort,
+                             "diverged": self.diverged})
 
 
 def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", duration: float, *,
-                   nonlinear: bool = True, progress: "ProgressCallback | None" = None) -> BatchMetrics:
+                   nonlinear: bool = True, progress: "ProgressCallback | None" = None,
+                   threads: int | None = None) -> BatchMetrics:
     """Simulate many variants of one loop (other gains, masses, stiffnesses, limits, ...) in one
-    compiled call and return each variant's following-error figures.
+    compiled call and return each variant's figures (:class:`BatchMetrics`).
 
     The variants must share the loop's structure (same blocks, sample periods, delays, filters
-    and friction links); only numbers may differ. Only the following error is recorded.
+    and friction links); only numbers may differ. Only the position sensor and the applied current
+    are recorded. The variants are shared over ``threads`` threads (default: numba's thread count in the
+    calling thread, see :func:`~sicomat.simulation.kernel.run_batch`); each one's figures are the same
+    whatever the thread count and the other variants.
     With ``progress`` (:mod:`sicomat.progress`) the variants run in about twenty compiled calls
     instead of one, each reported when it returns (the figures are the same: variants are independent).
     """
     from .kernel import run_batch
 
-    # the kernel's record and the following error computed from it: 2 values per variant and step
-    programs, n_steps = loop_programs(loops, profile, duration, nonlinear=nonlinear, recorded=2 * len(loops))
+    # the kernel's records (2 slots) and the following error and position computed from them: 4 values
+    # per variant and step
+    programs, n_steps = loop_programs(loops, profile, duration, nonlinear=nonlinear, recorded=4 * len(loops))
     sensors = [f"sensor.{loop.controller.position_sensor}" for loop in loops]
     if len(set(sensors)) != 1:
         raise ModelError("the variants of a batch must share their position sensor", path="controller.position_sensor")
+    first_program = programs[0]
+    applied = first_program.aliases.get("current.applied", None)
+    if applied is None:
+        applied = first_program.slot_names.index("current.applied")
     chunk = len(programs) if progress is None else max(1, -(-len(programs) // 20))
     task = f"simulating {len(programs)} variants: {n_steps} steps each"
     notify(progress, task, 0, len(programs))
     start = _time.perf_counter()
     parts = []
     for first in range(0, len(programs), chunk):
-        parts.append(run_batch(programs[first: first + chunk], n_steps, record=[sensors[0]], on_divergence="flag"))
+        parts.append(run_batch(programs[first: first + chunk], n_steps, record=[sensors[0], int(applied)],
+                               on_divergence="flag", threads=threads))
         notify(progress, task, min(first + chunk, len(programs)), len(programs))
     wall = _time.perf_counter() - start
     result = parts[0]
     records = np.concatenate([p.records for p in parts]) if len(parts) > 1 else result.records
     fine = profile.evaluate(result.time)[0]
     gains = np.array([loop.position_gain for loop in loops])
+    kt = np.array([loop.drive.kt for loop in loops])
     error = fine[None, :] - records[:, :, 0] / gains[:, None]
     bad = np.concatenate([p.diverged for p in parts]) if len(parts) > 1 else result.diverged
     with np.errstate(invalid="ignore"):
         figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]
-    max_error, rms_error, final_error = (np.where(bad, np.nan, f) for f in figures)
-    return BatchMetrics(max_error, rms_error, final_error, diverged=bad, wall_time_s=wall)
+        # as axis_series and step_metrics do for simulate(): the actual position is the fine setpoint
+        # minus the following error
+        overshoot, settling = step_figures_many(result.time, fine[None, :] - error, profile.distance,
+                                                final=float(fine[-1]), start=profile.breaks[0])
+        figures += [overshoot, settling, kt * np.max(np.abs(records[:, :, 1]), axis=1)]
+    max_error, rms_error, final_error, overshoot, settling, effort = (np.where(bad, np.nan, f) for f in figures)
+    return BatchMetrics(max_error, rms_error, final_error, overshoot_percent=overshoot, settling_time=settling,
+                        max_effort=effort, diverged=bad, wall_time_s=wall)

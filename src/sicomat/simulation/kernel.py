@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +23,7 @@ from .lowering import SUM as _SUM
 from .lowering import block_patterns, kernel_matrices, lower, sparse_outputs
 from ..servo.program import HybridProgram
 
-__all__ = ["SimulationDiverged", "KernelResult", "BatchResult", "run", "run_batch", "bare_loop",
+__all__ = ["SimulationDiverged", "KernelResult", "BatchResult", "run", "run_batch", "batch_threads", "bare_loop",
            "DIVERGENCE_FACTOR", "DIVERGENCE_WARMUP", "MAX_EVENTS"]
 
 DIVERGENCE_FACTOR = 1e9
@@ -37,6 +38,10 @@ MAX_EVENTS = 8
 """Default cap on stick/slip events located inside one base step (guards against Zeno chatter)."""
 
 _OK, _DIVERGED_STATE, _DIVERGED_RECORD = 0, 1, 2
+
+_njit_unrefcounted = njit(cache=True, error_model="numpy", _nrt=False)  # type: ignore[call-overload]
+"""The compilation of the kernel's allocation-free core (:func:`_simulate_steps`, :func:`_advance_with_events`,
+:func:`_resolve`): without numba's reference counting (``_nrt=False``), see :func:`_simulate_steps`."""
 
 _u = np.uint64
 """Index cast used in the kernel: numba skips its negative-index wrap-around for unsigned indices."""
@@ -190,51 +195,123 @@ def _propagate(PGT, c, lev, z, out, nx):
     """``out[:nx] = PGT[c, lev].T @ z`` (``z = [x; u; f]``; column-wise, vectorisable).
 
     Each sum starts at 0.0 and adds the terms in column order (the first column is added in the
-    initialising loop, which spares a separate zeroing pass).
+    initialising step). Rows are taken four at a time, their four sums kept in registers over the
+    columns (a sum read and written back in memory at every column waited on the store at each one);
+    each row's sum is the same sequence of operations as one row at a time.
     """
-    if z.shape[0] == 0:
+    nz = z.shape[0]
+    if nz == 0:
         return
     z0 = z[0]
-    for i in range(nx):
-        out[i] = 0.0 + PGT[c, lev, 0, i] * z0
-    for j in range(1, z.shape[0]):
-        zj = z[j]
-        for i in range(nx):
-            out[i] += PGT[c, lev, j, i] * zj
+    i = 0
+    while i + 4 <= nx:
+        s0 = 0.0 + PGT[c, lev, 0, i] * z0
+        s1 = 0.0 + PGT[c, lev, 0, i + 1] * z0
+        s2 = 0.0 + PGT[c, lev, 0, i + 2] * z0
+        s3 = 0.0 + PGT[c, lev, 0, i + 3] * z0
+        for j in range(1, nz):
+            zj = z[j]
+            s0 += PGT[c, lev, j, i] * zj
+            s1 += PGT[c, lev, j, i + 1] * zj
+            s2 += PGT[c, lev, j, i + 2] * zj
+            s3 += PGT[c, lev, j, i + 3] * zj
+        out[i] = s0
+        out[i + 1] = s1
+        out[i + 2] = s2
+        out[i + 3] = s3
+        i += 4
+    while i < nx:
+        s0 = 0.0 + PGT[c, lev, 0, i] * z0
+        for j in range(1, nz):
+            s0 += PGT[c, lev, j, i] * z[j]
+        out[i] = s0
+        i += 1
 
 
 @njit(cache=True, error_model="numpy", inline='always')
 def _propagate_rows(MT, c, z, out, nx):
-    """``out[:nx] = MT[c].T @ z``, column-wise as :func:`_propagate`."""
+    """``out[:nx] = MT[c].T @ z``, column-wise and four rows at a time as :func:`_propagate`."""
+    nz = z.shape[0]
     z0 = z[0]
-    for i in range(nx):
-        out[i] = 0.0 + MT[c, 0, i] * z0
-    for j in range(1, z.shape[0]):
-        zj = z[j]
-        for i in range(nx):
-            out[i] += MT[c, j, i] * zj
+    i = 0
+    while i + 4 <= nx:
+        s0 = 0.0 + MT[c, 0, i] * z0
+        s1 = 0.0 + MT[c, 0, i + 1] * z0
+        s2 = 0.0 + MT[c, 0, i + 2] * z0
+        s3 = 0.0 + MT[c, 0, i + 3] * z0
+        for j in range(1, nz):
+            zj = z[j]
+            s0 += MT[c, j, i] * zj
+            s1 += MT[c, j, i + 1] * zj
+            s2 += MT[c, j, i + 2] * zj
+            s3 += MT[c, j, i + 3] * zj
+        out[i] = s0
+        out[i + 1] = s1
+        out[i + 2] = s2
+        out[i + 3] = s3
+        i += 4
+    while i < nx:
+        s0 = 0.0 + MT[c, 0, i] * z0
+        for j in range(1, nz):
+            s0 += MT[c, j, i] * z[j]
+        out[i] = s0
+        i += 1
 
 
 @njit(cache=True, error_model="numpy", inline='always')
-def _dot(a, b, n):
-    """``a[:n] @ b[:n]`` in four partial sums: one chain of additions would wait on each one's latency
-    (these dot products decide stick and slip at every step)."""
+def _dot1(A, j, b, n):
+    """``A[j, :n] @ b[:n]`` in four partial sums: one chain of additions would wait on each one's
+    latency (these dot products decide stick and slip at every step).
+
+    The row is read in place by its indices (as :func:`_dot2` and :func:`_dot3` read theirs): a view
+    ``A[j]`` would take and release a reference to ``A`` (two atomic operations) at every call, which
+    cost the kernel as much as its arithmetic."""
     s0 = s1 = s2 = s3 = 0.0
     m = n - n % 4
     for i in range(0, m, 4):
-        s0 += a[i] * b[i]
-        s1 += a[i + 1] * b[i + 1]
-        s2 += a[i + 2] * b[i + 2]
-        s3 += a[i + 3] * b[i + 3]
+        s0 += A[j, i] * b[i]
+        s1 += A[j, i + 1] * b[i + 1]
+        s2 += A[j, i + 2] * b[i + 2]
+        s3 += A[j, i + 3] * b[i + 3]
     for i in range(m, n):
-        s0 += a[i] * b[i]
+        s0 += A[j, i] * b[i]
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _dot2(A, c, j, b, n):
+    """``A[c, j, :n] @ b[:n]``, summed as :func:`_dot1`."""
+    s0 = s1 = s2 = s3 = 0.0
+    m = n - n % 4
+    for i in range(0, m, 4):
+        s0 += A[c, j, i] * b[i]
+        s1 += A[c, j, i + 1] * b[i + 1]
+        s2 += A[c, j, i + 2] * b[i + 2]
+        s3 += A[c, j, i + 3] * b[i + 3]
+    for i in range(m, n):
+        s0 += A[c, j, i] * b[i]
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _dot3(A, c, j, k, b, n):
+    """``A[c, j, k, :n] @ b[:n]``, summed as :func:`_dot1`."""
+    s0 = s1 = s2 = s3 = 0.0
+    m = n - n % 4
+    for i in range(0, m, 4):
+        s0 += A[c, j, k, i] * b[i]
+        s1 += A[c, j, k, i + 1] * b[i + 1]
+        s2 += A[c, j, k, i + 2] * b[i + 2]
+        s3 += A[c, j, k, i + 3] * b[i + 3]
+    for i in range(m, n):
+        s0 += A[c, j, k, i] * b[i]
     return (s0 + s1) + (s2 + s3)
 
 
 @njit(cache=True, error_model="numpy", inline='always')
 def _holding_force(Lz, c, j, z):
     """Constraint force of link ``j`` in configuration ``c``: ``Lz[c, j] @ z``."""
-    return _dot(Lz[c, j], z, z.shape[0])
+    return _dot2(Lz, c, j, z, z.shape[0])
 
 
 @njit(cache=True, error_model="numpy", inline='always')
@@ -245,7 +322,7 @@ def _holding_forces(Lz, c, stuck, z, hold):
             hold[j] = _holding_force(Lz, c, j, z)
 
 
-@njit(cache=True, error_model="numpy")
+@_njit_unrefcounted
 def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     """Stick / slip decision at an event; projects the state, updates ``z``'s friction part.
 
@@ -260,7 +337,7 @@ def _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp):
     for j in range(nf):
         if stuck[j]:
             cand |= 1 << j
-        elif dirn[j] * _dot(G[j], z, nx) <= 0.0:    # as in _link_values: same sum, same sign
+        elif dirn[j] * _dot1(G, j, z, nx) <= 0.0:    # as in _link_values: same sum, same sign
             cand |= 1 << j
     while True:
         for i in range(nx):
@@ -306,7 +383,7 @@ def _link_values(zc, c, stuck, dirn, Lz, G, static, nx, vals):
             if abs(lam) > static[j]:
                 event = True
         else:
-            s = dirn[j] * _dot(G[j], zc, nx)
+            s = dirn[j] * _dot1(G, j, zc, nx)
             vals[j] = s
             if s < 0.0:
                 event = True
@@ -414,9 +491,9 @@ def _taylor_clear(z, g0, xi, K3, D, c, dt, stuck, dirn, static, nx):
     chord can (a link that has just broken away slides from zero velocity)."""
     nz = z.shape[0]
     for j in range(stuck.shape[0]):
-        M3 = _dot(K3[c, j], xi, nx)
-        d1 = _dot(D[c, j, 0], z, nz)
-        d2 = _dot(D[c, j, 1], z, nz)
+        M3 = _dot2(K3, c, j, xi, nx)
+        d1 = _dot3(D, c, j, 0, z, nz)
+        d2 = _dot3(D, c, j, 1, z, nz)
         if stuck[j]:
             s = static[j]
             if not (_cubic_positive(s - g0[j], -d1, -d2, M3, dt)
@@ -427,7 +504,7 @@ def _taylor_clear(z, g0, xi, K3, D, c, dt, stuck, dirn, static, nx):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@_njit_unrefcounted
 def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, coulomb, nx, nu,
                          max_events, g0, g1, PsiT, KU, KP, K3, D, pair, xi, step, end_event):
     """Advance ``z`` over one base step whose full-step candidate ``zc`` (event values ``g1``,
@@ -665,6 +742,42 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     ``fdata``, block sizes; see :func:`lower_ops`), so an op touches no other metadata.
     Indices read from the arrays are cast to unsigned (``_u``) where they are used: numba then
     omits its negative-index wrap-around, a fifth of the time of the ops.
+
+    This allocates the run's state and scratch arrays and hands them to :func:`_simulate_steps`,
+    which is compiled without numba's reference counting (see there).
+    """
+    nx = x0.shape[0]
+    nu = in_slots.shape[0]
+    nf = coulomb.shape[0]
+    nz = nx + nu + nf
+    count, wait, tb, delay_buf = _ops_state(op_code, op_period, op_phase, op_ip, n_delay)
+    # z: [x; u; f]; zc: the candidate [x+; u; f]; hold: the holding forces of the stuck links at
+    # the current z; g0, g1: event values of the links at z and at zc (see _link_values); xi: modal
+    # magnitudes of the state derivative (_modal_magnitudes); du: |change of the held input| at the latch
+    return _simulate_steps(
+        n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
+        op_code, op_period, op_ip, op_fp, idx, fdata, table,
+        in_slots, out_slots, fr_slots, rec_slots, n_slots,
+        PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, out_ptr, out_col, out_val, G, coulomb,
+        static, x0, rec_out, states_out, fric_out, stuck_out, x_final,
+        np.zeros(n_slots), xb0.copy(), count, wait, tb, delay_buf, np.zeros(nz), np.zeros(nz),
+        np.zeros(nz), np.zeros(nf, dtype=np.bool_), np.ones(nf), np.zeros(nf), np.zeros(nf),
+        np.zeros(nf), np.zeros(nx), np.zeros(nx), np.zeros(nu))
+
+
+@_njit_unrefcounted
+def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
+                    op_code, op_period, op_ip, op_fp, idx, fdata, table,
+                    in_slots, out_slots, fr_slots, rec_slots, n_slots,
+                    PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, out_ptr, out_col, out_val, G,
+                    coulomb, static, x0, rec_out, states_out, fric_out, stuck_out, x_final,
+                    slots, xb, count, wait, tb, delay_buf, z, zc, zp, stuck, dirn, hold, g0, g1, xi, xt, du):
+    """The base steps of :func:`_simulate`, on state and scratch arrays allocated by it.
+
+    Compiled without numba's reference counting (``_nrt=False``: it allocates nothing, and every
+    array it reads is owned by its caller for the whole call): with it, each use of an array by an
+    inlined helper took and released a reference (two atomic operations) that numba's pruning did
+    not remove, about 40 % of the kernel's time.
     """
     nx = x0.shape[0]
     nu = in_slots.shape[0]
@@ -677,30 +790,14 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
         rec_all = rec_all and rec_slots[i] == i
     n_fr = fr_slots.shape[0]
 
-    slots = np.zeros(n_slots)
-    xb = xb0.copy()
-    count, wait, tb, delay_buf = _ops_state(op_code, op_period, op_phase, op_ip, n_delay)
-    z = np.zeros(nz)           # [x; u; f]
-    zc = np.zeros(nz)          # candidate [x+; u; f]
-    zp = np.zeros(nz)
-    stuck = np.zeros(nf, dtype=np.bool_)
-    dirn = np.ones(nf)
-    # holding forces of the stuck links at the current z, when hold_ok: each is computed once
-    # and reused by the friction slots, the breakaway test and the stored friction
-    hold = np.zeros(nf)
     hold_ok = False
-    g0 = np.zeros(nf)          # event values of the links at z and at zc (see _link_values)
-    g1 = np.zeros(nf)
-    xi = np.zeros(nx)          # modal magnitudes of the state derivative (_modal_magnitudes)
-    xt = np.zeros(nx)
-    du = np.zeros(nu)          # |change of the held input| at the latch
     carried = False            # xi bounds the magnitudes at z's step start once carried (_carry)
     for i in range(nx):
         z[i] = x0[i]
     # links at zero sliding velocity start stuck
     cfg = 0
     for j in range(nf):
-        v = _dot(G[j], z, nx)
+        v = _dot1(G, j, z, nx)
         if v == 0.0:
             stuck[j] = True
             cfg |= 1 << j
@@ -808,7 +905,7 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
                 if not hold_ok:
                     _holding_forces(Lz, cfg, stuck, z, hold)
                 for j in range(nf):
-                    g0[j] = hold[j] if stuck[j] else dirn[j] * _dot(G[j], z, nx)
+                    g0[j] = hold[j] if stuck[j] else dirn[j] * _dot1(G, j, z, nx)
                 # the modal magnitudes carried from the last step bound the new ones (cheap);
                 # the state is projected only when they cannot clear the step
                 clear = False
@@ -849,23 +946,27 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     return status, k_bad, total_events
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, warmup,
                     op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, tables, tix,
                     n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots,
                     PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, cont, out_ptr,
                     out_col,
                     out_val, G,
-                    coulomb, static, x0, rec_out, x_final, status, k_bad):
-    """:func:`_simulate` for every variant; variant ``v`` uses ``PGT[cont[v]]``,
-    ``Lz[cont[v]]``, ``Proj[cont[v]]`` (variants with the same continuous part share its
-    discretisation) and the setpoint table ``tables[tix[v]]`` (usually one for all)."""
+                    coulomb, static, x0, rec_out, x_final, status, k_bad, v_first, v_last):
+    """:func:`_simulate` for the variants ``v_first <= v < v_last``; variant ``v`` uses
+    ``PGT[cont[v]]``, ``Lz[cont[v]]``, ``Proj[cont[v]]`` (variants with the same continuous part
+    share its discretisation) and the setpoint table ``tables[tix[v]]`` (usually one for all).
+
+    Releases the GIL: :func:`run_batch` runs ranges of variants on several threads at once, each
+    variant by the same compiled :func:`_simulate` and writing only its own rows, so a variant's
+    results do not depend on the thread that ran it nor on the other variants of the batch."""
     nx = x0.shape[1]
     nf = coulomb.shape[1]
     states_dummy = np.zeros((1, nx))
     fric_dummy = np.zeros((1, nf))
     stuck_dummy = np.zeros((1, nf), dtype=np.bool_)
-    for v in range(x0.shape[0]):
+    for v in range(v_first, v_last):
         c = cont[v]
         st, kb, _ = _simulate(
             n_steps, rec_every, False, max_events, limit_abs, limit_factor, warmup,
@@ -876,6 +977,107 @@ def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, war
             states_dummy, fric_dummy, stuck_dummy, x_final[v])
         status[v] = st
         k_bad[v] = kb
+
+
+def batch_threads(threads: int | None = None) -> int:
+    """The thread count of a batch: ``threads``, or numba's in the calling thread
+    (``numba.get_num_threads()``, which follows ``NUMBA_NUM_THREADS`` and ``numba.set_num_threads``)."""
+    if threads is None:
+        import numba
+
+        return int(numba.get_num_threads())
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ModelError("threads must be a whole number >= 1", value=threads)
+    return int(threads)
+
+
+CHUNKS_PER_THREAD = 16
+"""Ranges of variants queued per thread by :func:`_in_threads`: small enough that a thread finishing
+early takes more (variants with more stick/slip events cost more), large enough to cost nothing."""
+
+
+def _in_threads(work: Callable[[int, int], object], n: int, threads: int) -> None:
+    """``work(first, last)`` over ranges covering ``0 .. n``, on ``threads`` threads (a compiled call
+    that releases the GIL per range; in the calling thread when one suffices). The ranges are taken
+    from one queue, so the threads share the work whatever each range costs."""
+    threads = min(threads, n)
+    if threads <= 1:
+        work(0, n)
+        return
+    size = max(1, -(-n // (threads * CHUNKS_PER_THREAD)))
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="sicomat-batch") as pool:
+        for future in [pool.submit(work, first, min(first + size, n)) for first in range(0, n, size)]:
+            future.result()
+
+
+PIECES = 16
+"""Pieces a batch on several threads is prepared in (see :func:`_pipelined`): the threads wait only for
+the first one (a sixteenth of the preparation) and the preparation of each next one overlaps the kernel."""
+
+MIN_PIECE = 16
+"""Fewest variants in a piece of a pipelined batch (smaller batches are prepared in one piece)."""
+
+
+def _piece_size(n: int, threads: int) -> int:
+    """Variants per prepared piece of a batch of ``n`` on ``threads`` threads (``n``: one piece)."""
+    if threads <= 1 or n < 2 * MIN_PIECE:
+        return n
+    return max(MIN_PIECE, -(-n // PIECES))
+
+
+def _pipelined(prepare: Callable[[int, int], tuple], kernel: Callable[..., object], n: int, size: int,
+               threads: int) -> None:
+    """``kernel(*prepare(a, b), first, last)`` over pieces ``[a, b)`` of ``0 .. n``: each piece is
+    prepared in the calling thread and its ranges queued to ``threads`` threads, which run them while
+    the next pieces are prepared. An error while preparing a piece (a variant of another structure)
+    cancels what is queued, waits for what runs and is raised (the outputs are the caller's to drop)."""
+    step = max(1, -(-n // (threads * CHUNKS_PER_THREAD)))
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="sicomat-batch") as pool:
+        futures = []
+        try:
+            for a in range(0, n, size):
+                b = min(a + size, n)
+                args = prepare(a, b)
+                futures += [pool.submit(kernel, *args, first, min(first + step, b - a))
+                            for first in range(0, b - a, step)]
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
+        for future in futures:
+            future.result()
+
+
+def _batch_arguments(programs: Sequence[HybridProgram], first: int, last: int, reference, rec_sel,
+                     patterns, levels: int, step: float) -> tuple:
+    """The kernel's arguments (all but the common head and the output rows) for the variants
+    ``first .. last - 1``: lowered with the block patterns of the whole batch (so that their structure
+    is variant 0's, ``reference``), checked, and discretised (equal continuous parts once)."""
+    part = programs[first:last]
+    lows = [lower(p, rec_sel, patterns) for p in part]
+    key = reference.structure_key()
+    for v, (p, low) in enumerate(zip(part, lows), start=first):
+        if p.step != step:
+            raise ModelError(f"variant {v}: base step differs from variant 0", value=p.step)
+        if low.structure_key() != key:
+            what = next(name for name, ref in reference.struct.items()
+                        if low.struct[name].shape != ref.shape
+                        or not np.array_equal(low.struct[name], ref))
+            raise ModelError(f"variant {v} does not have the structure of variant 0 ({what} "
+                             f"differs)")
+    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices(part, reference.links, levels)
+    nums = {name: np.ascontiguousarray(np.stack([low.nums[name] for low in lows]))
+            for name in reference.nums if name != "table"}
+    tables, tix = _shared([low.nums["table"] for low in lows])
+    s = reference.struct
+    # the outputs' sparsity pattern is this piece's: a coefficient zero in every variant of a piece adds
+    # only +-0 where another piece keeps it (see run), so a variant's results do not depend on its piece
+    out_ptr, out_col, out_val = sparse_outputs(nums["CD"])
+    return (s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
+            nums["fdata"], nums["xb0"], tables, tix, int(s["shapes"][5]), s["in_slots"],
+            s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, PsiT, KU,
+            KP, K3, D, pair, GH, kd, float(step), cont,
+            out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"])
 
 
 def _shared(arrays: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -1028,7 +1230,7 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
 def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEFAULT_LEVELS,
               record_every: int = 1, *, record: Sequence[int | str] | None = None,
               divergence_limit: float | None = None, max_events: int = MAX_EVENTS,
-              on_divergence: str = "raise") -> BatchResult:
+              on_divergence: str = "raise", threads: int | None = None) -> BatchResult:
     """Simulate variants of one program structure in a single compiled call.
 
     The variants must share the op list (kinds, periods, phases, slots, delay lengths, quantizer
@@ -1050,6 +1252,11 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
     on_divergence : {"raise", "flag"}
         ``"raise"``: :class:`SimulationDiverged` for the first diverged variant; ``"flag"``: mark
         it in :attr:`BatchResult.diverged_step` and zero its records from the divergence on.
+    threads : int, optional
+        Threads the variants are shared over (default: numba's thread count in the calling thread,
+        ``numba.get_num_threads()``: ``NUMBA_NUM_THREADS``, the machine's cores unless set, or what
+        ``numba.set_num_threads`` set; a Dask worker sets 1). A variant's results are bit-identical
+        whatever the thread count and whatever the other variants of the batch.
 
     Returns
     -------
@@ -1070,44 +1277,38 @@ def run_batch(programs: Sequence[HybridProgram], n_steps: int, levels: int = DEF
     programs = list(programs)
     if not programs:
         raise ModelError("run_batch needs at least one program")
+    n_threads = batch_threads(threads)
     n_steps, every = int(n_steps), int(record_every)
     rec_sel = _record_slots(programs[0], record)
-    patterns = block_patterns(programs)
-    lows = [lower(p, rec_sel, patterns) for p in programs]
-    first = lows[0]
     step = programs[0].step
-    key = first.structure_key()
-    for v, (p, low) in enumerate(zip(programs, lows)):
-        if p.step != step:
-            raise ModelError(f"variant {v}: base step differs from variant 0", value=p.step)
-        if low.structure_key() != key:
-            what = next(name for name, ref in first.struct.items()
-                        if low.struct[name].shape != ref.shape
-                        or not np.array_equal(low.struct[name], ref))
-            raise ModelError(f"variant {v} does not have the structure of variant 0 ({what} "
-                             f"differs)")
-    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices(programs, first.links, int(levels))
-    nums = {key: np.ascontiguousarray(np.stack([low.nums[key] for low in lows]))
-            for key in first.nums if key != "table"}
-    tables, tix = _shared([low.nums["table"] for low in lows])
-    s = first.struct
-    out_ptr, out_col, out_val = sparse_outputs(nums["CD"])
+    patterns = block_patterns(programs)
     nv = len(programs)
     n_rec = -(-n_steps // every)
+    limit_abs, factor = _divergence_args(divergence_limit)
+    head = (n_steps, every, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP)
+    reference = lower(programs[0], rec_sel, patterns)
+    s = reference.struct
     # rows from a divergence on are zeroed below; the others are all written by the kernel
     rec = np.empty((nv, n_rec, s["rec_slots"].size))
-    x_final = np.zeros((nv, first.nx))
+    x_final = np.zeros((nv, reference.nx))
     status = np.zeros(nv, dtype=np.int64)
     k_bad = np.zeros(nv, dtype=np.int64)
-    limit_abs, factor = _divergence_args(divergence_limit)
-    _simulate_batch(
-        n_steps, every, int(max_events), limit_abs, factor, DIVERGENCE_WARMUP,
-        s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
-        nums["fdata"], nums["xb0"], tables, tix, int(s["shapes"][5]), s["in_slots"],
-        s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, PsiT, KU, KP, K3, D, pair,
-        GH, kd, float(step), cont,
-        out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"], rec,
-        x_final, status, k_bad)
+
+    def prepare(first: int, last: int) -> tuple:
+        """The kernel's arguments for the variants ``first .. last - 1`` (lowered, checked against
+        variant 0's structure, discretised) and their output rows."""
+        return _batch_arguments(programs, first, last, reference, rec_sel, patterns, int(levels), step) + (
+            rec[first:last], x_final[first:last], status[first:last], k_bad[first:last])
+
+    size = _piece_size(nv, n_threads)
+    if size >= nv:
+        args = head + prepare(0, nv)
+        compiled: Callable[..., object] = _simulate_batch
+        _in_threads(lambda a, b: compiled(*args, a, b), nv, n_threads)
+    else:
+        # pieces: each one prepared in this thread (Python, under the GIL) while the threads run the
+        # compiled kernel (without the GIL) on the pieces before it
+        _pipelined(lambda a, b: head + prepare(a, b), _simulate_batch, nv, size, n_threads)
     diverged_step = np.where(status != _OK, k_bad, -1)
     for v in np.flatnonzero(status != _OK).tolist():
         if on_divergence == "raise":

@@ -12,7 +12,7 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     import pandas
 
-__all__ = ["TimeSeries", "StepMetrics", "StepFigures", "step_metrics", "step_figures"]
+__all__ = ["TimeSeries", "StepMetrics", "StepFigures", "step_metrics", "step_figures", "step_figures_many"]
 
 
 @dataclass(frozen=True)
@@ -87,6 +87,27 @@ def step_figures(time: np.ndarray, response: np.ndarray, amplitude: float, *, fi
     elif outside[-1] < len(time) - 1:
         settling = float(time[outside[-1] + 1] - start)
     return StepFigures(overshoot, rise, settling)
+
+
+def step_figures_many(time: np.ndarray, responses: np.ndarray, amplitude: float, *, final: float | None = None,
+                      start: float = 0.0, band: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """Overshoot (percent) and settling time (s) of every row of ``responses`` (shape ``(n_runs,
+    len(time))``): :func:`step_figures`'s definitions and arithmetic row by row, NaN where a row has
+    no settling time (still outside the band at its last sample); :func:`step_metrics`'s convention for
+    ``amplitude == 0`` (a move that does not end): overshoot 0, no settling time (NaN)."""
+    time = np.asarray(time, dtype=float)
+    responses = np.atleast_2d(np.asarray(responses, dtype=float))
+    n_runs, n = responses.shape
+    if amplitude == 0 or n == 0:
+        return np.zeros(n_runs), np.full(n_runs, np.nan)
+    target = float(amplitude if final is None else final)
+    sign, size = float(np.sign(amplitude)), abs(float(amplitude))
+    overshoot = np.maximum(0.0, np.max(sign * (responses - target), axis=1) / size * 100)
+    outside = np.abs(responses - target) > band * size
+    last = n - 1 - np.argmax(outside[:, ::-1], axis=1)        # the last sample outside the band
+    after = time[np.minimum(last + 1, n - 1)] - start
+    settling = np.where(~outside.any(axis=1), 0.0, np.where(last < n - 1, after, np.nan))
+    return overshoot, settling
 
 
 def step_metrics(time: np.ndarray, setpoint: np.ndarray, actual: np.ndarray, distance: float,
