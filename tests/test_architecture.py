@@ -343,6 +343,7 @@ LONG_MODULES: dict[str, str] = {
     "sicomat.tuning.frequency": "the frequency approach of the tuning (rigid closed form, then the complete model)",
     "sicomat.servo.loop": "the servo loop: resolved from the axis description and lowered to a hybrid program",
     "sicomat.cli.main": "the CLI's commands, each delegating to the library",
+    "sicomat.io.modelfile": "the model file in and out: reading with its limits, --set key paths, validation messages, saving",
     "sicomat.description.chain": "the lowering of a drive chain of parts to lumped bodies and springs (one walk, then the detail)",
 }
 

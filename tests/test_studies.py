@@ -58,7 +58,7 @@ velocity_crossover = "20 Hz"
 velocity_phase_margin = 45
 
 [simulate]
-duration = "0.1 s"
+duration = "0.3 s"
 """
 
 
@@ -104,10 +104,17 @@ def test_a_grid_study_equals_its_variants_run_one_by_one(tmp_path, client):
         pm = stability_margins(an.response("velocity-open")).phase_margin_deg
         assert row["margins.velocity.phase_margin_deg"] == pytest.approx(pm, rel=1e-12)
         profile, _ = choose_profile(machine.axes["X"].trajectory, None, None, None, None)
-        series = simulate(tuned_loop, profile, 0.1)
+        series = simulate(tuned_loop, profile, 0.3)
+        assert series.metrics.settling_time is not None          # the move settles within the run
         assert row["simulate.max_following_error"] == pytest.approx(series.metrics.max_following_error, abs=1e-12)
         assert row["simulate.rms_following_error"] == pytest.approx(series.metrics.rms_following_error, abs=1e-12)
         assert row["simulate.final_error"] == pytest.approx(series.metrics.final_error, abs=1e-12)
+        # settling: the same band and start as simulate()'s; the crossing time is interpolated between two
+        # samples from the errors above, so it agrees to their 1e-12 m over the error's slope (well under 1 us)
+        assert row["simulate.settling_time"] == pytest.approx(series.metrics.settling_time, abs=1e-6)
+        assert row["simulate.overshoot_percent"] == pytest.approx(series.metrics.overshoot_percent, abs=1e-6)
+        peak = loop.drive.kt * np.max(np.abs(series.signals["current.applied"]))
+        assert row["simulate.max_effort"] == pytest.approx(peak, rel=1e-12)
         assert row["constraints_ok"] == (pm >= 40 and flexible[1] > 300)
     # the table as written, read back
     assert results.results_path.name == "results.parquet"

@@ -198,10 +198,8 @@ def _toml_limit(exc: BaseException) -> str:
 
 
 def _check_depth(data: Any, source: str | None, prefix: str = "") -> None:
-    """Refuse tables and arrays nested deeper than :data:`MAX_DEPTH`, naming the key path (iterative:
-    no recursion on the user's nesting)."""
-    # only tables and arrays are visited (a leaf cannot be too deep), and a child's key path is written only
-    # for those: the check runs on every model variant of a study
+    """Refuse tables and arrays nested deeper than :data:`MAX_DEPTH`, naming the key path (iterative: no recursion
+    on the user's nesting; only tables and arrays visited, as it runs on every variant of a study)."""
     stack = [(data, prefix, 0)]
     while stack:
         node, where, depth = stack.pop()

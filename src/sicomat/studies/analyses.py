@@ -43,7 +43,8 @@ METRICS: dict[str, dict[str, str]] = {
     "margins": {**{f"margins.{loop}.{m}": "f" for loop in ("velocity", "position") for m in _LOOP},
                 "margins.stable": "b"},
     "simulate": {"simulate.max_following_error": "f", "simulate.rms_following_error": "f",
-                 "simulate.final_error": "f", "simulate.diverged": "b"},
+                 "simulate.final_error": "f", "simulate.settling_time": "f", "simulate.overshoot_percent": "f",
+                 "simulate.max_effort": "f", "simulate.diverged": "b"},
     "circle": {"circle.circular_deviation": "f", "circle.max_contour_error": "f",
                "circle.rms_contour_error": "f", "circle.radial_deviation_min": "f",
                "circle.radial_deviation_max": "f", "circle.servo_mismatch": "f", "circle.stable": "b"},
@@ -61,6 +62,7 @@ UNITS: dict[str, str] = {
     **{f"margins.{loop}.delay_margin": "s" for loop in ("velocity", "position")},
     **{f"margins.{loop}.modulus_margin": "1" for loop in ("velocity", "position")},
     **{f"simulate.{k}": "m" for k in ("max_following_error", "rms_following_error", "final_error")},
+    "simulate.settling_time": "s", "simulate.max_effort": "N",
     **{f"circle.{k}": "m" for k in ("circular_deviation", "max_contour_error", "rms_contour_error",
                                       "radial_deviation_min", "radial_deviation_max", "servo_mismatch")},
     **{f"size.{c}{suffix}": unit for c, unit in (
@@ -70,7 +72,8 @@ UNITS: dict[str, str] = {
         ("screw_critical_speed", "rad/s"), ("screw_max_speed", "rad/s")) for suffix in ("", ".limit")},
 }
 """The SI unit of each metric whose name carries none (the others: Hz, degrees, dB, true/false; ``size.*``
-in the check's unit: N or N·m, rad/s or m/s, V, A, 1; ``tune.Kp`` in the model's physical unit, effort per
+in the check's unit: N or N·m, rad/s or m/s, V, A, 1; ``simulate.max_effort`` in N, or N·m for a torque
+actuator (the plan labels it so); ``tune.Kp`` in the model's physical unit, effort per
 axis velocity: N·s/m, N·m·s/m, N·m·s/rad). On a rotary axis (its coordinate in rad) ``modal.moving_mass`` is an
 inertia in kg·m² (the study's plan labels it so)."""
 
@@ -285,6 +288,9 @@ def _simulate_group(members: list[tuple[_Variant, Any, float]]) -> None:
         v.row.update({"simulate.max_following_error": float(batch.max_following_error[k]),
                       "simulate.rms_following_error": float(batch.rms_following_error[k]),
                       "simulate.final_error": float(batch.final_error[k]),
+                      "simulate.settling_time": float(batch.settling_time[k]),
+                      "simulate.overshoot_percent": float(batch.overshoot_percent[k]),
+                      "simulate.max_effort": float(batch.max_effort[k]),
                       "simulate.diverged": bool(batch.diverged[k])})
 
 

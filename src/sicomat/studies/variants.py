@@ -60,6 +60,7 @@ class StudyPlan:
     grid_shape: tuple[int, ...]
     metrics: tuple[str, ...] = field(default=())
     rotary: bool = False
+    torque: bool = False
     options: Any = None
 
     def units(self) -> dict[str, str]:
@@ -70,6 +71,8 @@ class StudyPlan:
         out.update({m: UNITS[m] for m in self.metrics if m in UNITS})
         if self.rotary:
             out["modal.moving_mass"] = "kg·m²"
+        if self.torque:
+            out["simulate.max_effort"] = "N·m"
         return out
 
     @property
@@ -145,20 +148,22 @@ def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
     check_analyses(spec, machine, axis, source)
     options = analysis_options(spec, axis, source)
     _check_names(spec, metrics, [p.path for p in spec.parameters], source)
-    return StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics), "rotary": _rotary(machine, axis),
+    return StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics), **_axis_kind(machine, axis),
                               "options": options})
 
 
-def _rotary(machine: "Machine", axis: str) -> bool:
-    """Whether the axis's coordinate is an angle (its tool on rotational dofs only)."""
+def _axis_kind(machine: "Machine", axis: str) -> dict[str, bool]:
+    """``rotary``: the axis's coordinate is an angle (its tool on rotational dofs only); ``torque``: its drive
+    applies a torque (the units of the table's labels)."""
     from ..servo.loop import build_servo_loop
 
     try:
         loop = build_servo_loop(machine, axis)
     except SicomatError:
-        return False
+        return {"rotary": False, "torque": False}
     kinds = {d.kind for d, t in zip(loop.mechanics.dofs, loop.tool) if t != 0}
-    return kinds == {"rotational"}
+    return {"rotary": kinds == {"rotational"},
+            "torque": loop.mechanics.actuator(loop.actuator).kind != "translational"}
 
 
 def _check_names(spec: StudySpec, metrics: list[str], inputs: list[str], source: str) -> None:
