@@ -492,3 +492,18 @@ def test_the_circle_test_after_tuning_equals_the_verbs_one_by_one(tmp_path, clie
         assert row["circle.max_contour_error"] == pytest.approx(payload["max_contour_error"], rel=1e-12)
     # the Y gain changes the contour: the rows differ (the variants are not the base model twice)
     assert table["circle.max_contour_error"][0] != table["circle.max_contour_error"][1]
+
+
+def failing_chunk(chunk):
+    """A task that fails on the worker (outside any variant): a bug, a lost worker."""
+    raise RuntimeError("the worker lost its disk")
+
+
+def test_a_chunk_the_cluster_gives_up_on_is_one_clear_error(tmp_path, client, monkeypatch):
+    """Not a traceback: an AnalysisError that says what failed, what is kept and how to resume."""
+    from sicomat.errors import AnalysisError
+    from sicomat.studies import Study, analyses
+
+    monkeypatch.setattr(analyses, "run_chunk", failing_chunk)
+    with pytest.raises(AnalysisError, match="RuntimeError: the worker lost its disk.*--resume"):
+        Study(write_study(tmp_path, SMALL)).run(client)

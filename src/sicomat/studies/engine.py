@@ -22,7 +22,7 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator
 
-from ..errors import ModelError, OutputError
+from ..errors import AnalysisError, ModelError, OutputError
 from ..progress import notify
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -189,7 +189,12 @@ def _run(client: Any, plan: "StudyPlan", chunk: int, todo: list[int], threads: i
     finished = reused
     try:
         for future in as_completed(futures):
-            result = future.result()
+            try:
+                result = future.result()
+            except Exception as exc:  # noqa: BLE001 - a task the cluster gave up on (KilledWorker, a lost scheduler)
+                raise AnalysisError(f"a chunk of the study failed on the Dask cluster ({exc.__class__.__name__}: "
+                                    f"{exc}); the {finished} chunks finished are written in {chunks_dir}: run the "
+                                    "same command with --resume to compute the rest") from None
             frame = chunk_frame(plan, result.index * chunk, result.rows)
             target = chunks_dir / CHUNK_PATTERN.format(result.index)
             atomic_write(target, partial(_parquet, frame), kind="parquet")
