@@ -17,6 +17,7 @@ import json
 import math
 import os
 import time
+import uuid
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -183,8 +184,11 @@ def _run(client: Any, plan: "StudyPlan", chunk: int, todo: list[int], threads: i
 
     task = f"study: {plan.variants} variants in {n_chunks} chunks"
     notify(progress, task, reused, n_chunks)
-    futures = [client.submit(run_chunk, job, key=f"sicomat-study-{fp[:12]}-{job.index}", pure=False, retries=1)
-               for job in _chunks(plan, chunk, todo, threads)]
+    # a key of its own per run: the tasks of an interrupted run of the same study, being cancelled on the
+    # scheduler, must not be taken for (and cancel) the resumed run's tasks
+    run = uuid.uuid4().hex[:8]
+    futures = [client.submit(run_chunk, job, key=f"sicomat-study-{fp[:12]}-{run}-{job.index}", pure=False,
+                             retries=1) for job in _chunks(plan, chunk, todo, threads)]
     compute = 0.0
     finished = reused
     try:
