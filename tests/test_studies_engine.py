@@ -33,7 +33,7 @@ distribution = "uniform"
 low = 0.8
 high = 1.2
 relative = true
-samples = 8
+samples = 24
 
 [[parameters]]
 path = "axes.X.controller.Kv"
@@ -96,7 +96,7 @@ def reference(tmp_path_factory):
         client.close()
         c.close()
     table = results.to_pandas()
-    assert len(table) == 16 and table["error"].isna().all()
+    assert len(table) == 48 and table["error"].isna().all()
     return table
 
 
@@ -117,8 +117,8 @@ def test_two_worker_processes_give_the_same_table(tmp_path, reference):
 
 
 def test_a_killed_worker_loses_no_row_and_duplicates_none(tmp_path, reference):
-    """SIGKILL one of two worker processes once the first chunk is written (16 chunks of one variant: the kill
-    lands while both are computing): the scheduler recomputes the lost task elsewhere (the nanny restarts the
+    """SIGKILL one of two worker processes once the first chunk is written (48 chunks of one variant, about a
+    second of work: the kill lands while both are computing): the scheduler recomputes the lost task elsewhere (the nanny restarts the
     worker); every variant is in the table once, with the reference's numbers (which were cut in chunks of 3:
     the chunking does not change a number either)."""
     from sicomat.studies import Study
@@ -142,16 +142,16 @@ def test_a_killed_worker_loses_no_row_and_duplicates_none(tmp_path, reference):
     finally:
         client.close()
         c.close()
-    assert 1 <= written_at_kill < 16, "the kill must land mid-study"
+    assert 1 <= written_at_kill < 48, "the kill must land mid-study"
     assert sorted(pids.values())[0] not in after.values()     # the process was killed (and replaced)
     table = results[0].to_pandas()
-    assert list(table["variant"]) == list(range(16))          # none lost, none twice
+    assert list(table["variant"]) == list(range(48))          # none lost, none twice
     pd.testing.assert_frame_equal(table, reference)
 
 
 def test_an_interrupted_study_resumes_with_only_the_missing_chunks(tmp_path, reference):
     """Ctrl-C after three chunks (raised from the progress callback, in the client's thread as a real Ctrl-C
-    is): the finished chunks stay on disk; --resume computes the other three and leaves the first ones
+    is): the finished chunks stay on disk; --resume computes the other thirteen and leaves the first ones
     untouched (same bytes, same modification time); the table is the uninterrupted study's."""
     from sicomat.studies import Study
 
@@ -171,7 +171,7 @@ def test_an_interrupted_study_resumes_with_only_the_missing_chunks(tmp_path, ref
     finally:
         client.close()
         c.close()
-    assert results.info["chunks"] == {"total": 6, "computed": 3, "reused": 3}
+    assert results.info["chunks"] == {"total": 16, "computed": 13, "reused": 3}
     for name, (mtime, data) in kept.items():
         assert (chunks / name).stat().st_mtime_ns == mtime and (chunks / name).read_bytes() == data
     pd.testing.assert_frame_equal(results.to_pandas(), reference)
