@@ -507,3 +507,19 @@ def test_a_chunk_the_cluster_gives_up_on_is_one_clear_error(tmp_path, client, mo
     monkeypatch.setattr(analyses, "run_chunk", failing_chunk)
     with pytest.raises(AnalysisError, match="RuntimeError: the worker lost its disk.*--resume"):
         Study(write_study(tmp_path, SMALL)).run(client)
+
+
+def test_the_local_cluster_size(monkeypatch):
+    """One worker per usable core, no more than the chunks to compute nor than memory holds at 512 MB each."""
+    import types
+
+    import psutil
+
+    from sicomat.studies.engine import WORKER_MEMORY, default_workers
+
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: types.SimpleNamespace(available=10 * WORKER_MEMORY))
+    assert default_workers(64, 50) == 10       # memory
+    assert default_workers(8, 3) == 3          # chunks
+    assert default_workers(4, 50) == 4         # cores
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: types.SimpleNamespace(available=WORKER_MEMORY // 2))
+    assert default_workers(4, 50) == 1         # always one

@@ -165,7 +165,7 @@ def run_plan(plan: "StudyPlan", out: Path, *, client: Any = None, scheduler: str
     if todo:
         notify(progress, "starting a local Dask cluster" if client is None and scheduler is None
                else "connecting to the Dask cluster", 0, None)
-        with _client(client, scheduler, workers) as (dask_client, where, threads):
+        with _client(client, scheduler, workers, len(todo)) as (dask_client, where, threads):
             n_workers = len(dask_client.scheduler_info().get("workers", {}))
             compute = _run(dask_client, plan, chunk, todo, threads, chunks_dir, fp, n_chunks, len(done), progress)
     else:
@@ -213,6 +213,28 @@ def _run(client: Any, plan: "StudyPlan", chunk: int, todo: list[int], threads: i
     return compute
 
 
+WORKER_MEMORY = 512 * 1024 ** 2
+"""Memory a worker process of the local cluster is counted to need (Python, numpy, SciPy, numba and the
+compiled kernels, a chunk's models: about 300 MB measured): the default worker count leaves room for them."""
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity: a container's share, not the host's count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:   # pragma: no cover - no sched_getaffinity (macOS, Windows)
+        return os.cpu_count() or 1
+
+
+def default_workers(cores: int, tasks: int) -> int:
+    """The local cluster's size without ``--workers``: one process per usable core, but no more than the chunks
+    to compute, nor than the available memory holds at :data:`WORKER_MEMORY` each."""
+    import psutil
+
+    by_memory = int(psutil.virtual_memory().available // WORKER_MEMORY)
+    return max(1, min(cores, tasks, by_memory))
+
+
 def _parquet(frame: "pandas.DataFrame", path: str) -> None:
     frame.to_parquet(path, index=False)
 
@@ -220,8 +242,8 @@ def _parquet(frame: "pandas.DataFrame", path: str) -> None:
 class _client:
     """The Dask client to use: the caller's, a scheduler's by address, or an embedded local cluster."""
 
-    def __init__(self, client: Any, scheduler: str | None, workers: int | None) -> None:
-        self.given, self.scheduler, self.workers = client, scheduler, workers
+    def __init__(self, client: Any, scheduler: str | None, workers: int | None, tasks: int) -> None:
+        self.given, self.scheduler, self.workers, self.tasks = client, scheduler, workers, tasks
         self.own: list[Any] = []
         self.levels: list[tuple[Any, int]] = []
 
@@ -240,8 +262,8 @@ class _client:
                                  value=self.scheduler) from None
             self.own.append(client)
             return client, self.scheduler, None
-        cores = os.cpu_count() or 1
-        n = self.workers or cores
+        cores = usable_cores()
+        n = self.workers or default_workers(cores, self.tasks)
         # the scheduler runs in this process: its INFO lines (workers starting and closing) are not the
         # user's business on the terminal; the levels are put back on exit
         for name in ("distributed", "distributed.scheduler", "distributed.nanny", "distributed.core"):
