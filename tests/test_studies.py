@@ -287,6 +287,15 @@ values = ["1 kg", "-3 kg"]""", "parameters.0.path", "-3"),
 path = "axes.X.mechanics.bodies.load.mass"
 valus = ["1 kg"]""", "parameters.0.valus", "unknown key"),
     ("""[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+range = ["100 kg", "200 kg", 1000000000000]""", "parameters.0.range", "at most"),   # refused before any allocation
+    ("""[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+range = ["100 kg", "200 kg", 10000]
+[[parameters]]
+path = "axes.X.mechanics.bodies.primary.mass"
+range = ["90 kg", "95 kg", 10000]""", "parameters", "100000000 variants"),
+    ("""[[parameters]]
 path = "axes.X.mechanics.parts.0.id"
 catalogue = "motor"
 where = ["peak_torque >= 1e6 N*m"]""", "parameters.0", "relative"),

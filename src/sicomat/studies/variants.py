@@ -77,7 +77,7 @@ class StudyPlan:
 
     @property
     def variants(self) -> int:
-        return int(np.prod(self.grid_shape, dtype=np.int64)) * self.samples
+        return math.prod(self.grid_shape) * self.samples   # Python integers: no overflow on a huge grid
 
     def _levels(self, variant: int) -> list[int]:
         grid, sample = divmod(int(variant), self.samples)
@@ -251,6 +251,8 @@ def _range(spec: list[Any], log: bool, bad) -> list[Any]:
         raise bad("the third item N (the number of values) must be an integer", spec)
     if n < 1:
         raise bad(f"an empty range: N = {n}; expected N >= 1", spec)
+    if n > MAX_VARIANTS:
+        raise bad(f"N = {n} values; at most {MAX_VARIANTS} variants in one study", spec)
     try:
         (lo, unit), (hi, unit_high) = split_quantity(low), split_quantity(high)
     except ValueError as exc:
@@ -268,6 +270,8 @@ def _range(spec: list[Any], log: bool, bad) -> list[Any]:
 def _draws(p: ParameterSpec, seed: int, k: int, bad) -> list[Any]:
     if p.samples is None or p.samples < 1:
         raise bad("expected samples >= 1 (the number of draws)", "samples", p.samples)
+    if p.samples > MAX_VARIANTS:
+        raise bad(f"{p.samples} draws; at most {MAX_VARIANTS} variants in one study", "samples", p.samples)
     if p.distribution == "uniform":
         if p.low is None or p.high is None or p.mean is not None or p.std is not None:
             raise bad("a uniform distribution takes low and high", "distribution", p.distribution)
