@@ -192,45 +192,21 @@ def bare_loop(Phi, Gamma, K, n_steps):
 
 @njit(cache=True, error_model="numpy", inline='always')
 def _propagate(PGT, c, lev, z, out, nx):
-    """``out[:nx] = PGT[c, lev].T @ z`` (``z = [x; u; f]``; column-wise, vectorisable).
+    """``out[:nx] = PGT[c, lev].T @ z`` (``z = [x; u; f]``): :func:`_propagate_rows` on the level's matrix."""
+    if z.shape[0] == 0:
+        return
+    _propagate_rows(PGT[c], lev, z, out, nx)
+
+
+@njit(cache=True, error_model="numpy", inline='always')
+def _propagate_rows(MT, c, z, out, nx):
+    """``out[:nx] = MT[c].T @ z`` (column-wise, vectorisable).
 
     Each sum starts at 0.0 and adds the terms in column order (the first column is added in the
     initialising step). Rows are taken four at a time, their four sums kept in registers over the
     columns (a sum read and written back in memory at every column waited on the store at each one);
     each row's sum is the same sequence of operations as one row at a time.
     """
-    nz = z.shape[0]
-    if nz == 0:
-        return
-    z0 = z[0]
-    i = 0
-    while i + 4 <= nx:
-        s0 = 0.0 + PGT[c, lev, 0, i] * z0
-        s1 = 0.0 + PGT[c, lev, 0, i + 1] * z0
-        s2 = 0.0 + PGT[c, lev, 0, i + 2] * z0
-        s3 = 0.0 + PGT[c, lev, 0, i + 3] * z0
-        for j in range(1, nz):
-            zj = z[j]
-            s0 += PGT[c, lev, j, i] * zj
-            s1 += PGT[c, lev, j, i + 1] * zj
-            s2 += PGT[c, lev, j, i + 2] * zj
-            s3 += PGT[c, lev, j, i + 3] * zj
-        out[i] = s0
-        out[i + 1] = s1
-        out[i + 2] = s2
-        out[i + 3] = s3
-        i += 4
-    while i < nx:
-        s0 = 0.0 + PGT[c, lev, 0, i] * z0
-        for j in range(1, nz):
-            s0 += PGT[c, lev, j, i] * z[j]
-        out[i] = s0
-        i += 1
-
-
-@njit(cache=True, error_model="numpy", inline='always')
-def _propagate_rows(MT, c, z, out, nx):
-    """``out[:nx] = MT[c].T @ z``, column-wise and four rows at a time as :func:`_propagate`."""
     nz = z.shape[0]
     z0 = z[0]
     i = 0
