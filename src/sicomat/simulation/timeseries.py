@@ -73,26 +73,20 @@ def step_figures(time: np.ndarray, response: np.ndarray, amplitude: float, *, fi
     """
     time = np.asarray(time, dtype=float)
     response = np.asarray(response, dtype=float)
-    target = float(amplitude if final is None else final)
+    (overshoot,), (settling,) = step_figures_many(time, response[None, :], amplitude, final=final, start=start,
+                                                  band=band)
     sign, size = float(np.sign(amplitude)), abs(float(amplitude))
-    overshoot = float(max(0.0, np.max(sign * (response - target)) / size * 100))
     progress = sign * response / size
     t10 = _first_crossing(time, progress, 0.1)
     t90 = _first_crossing(time, progress, 0.9)
     rise = float(t90 - t10) if t10 is not None and t90 is not None else None
-    outside = np.flatnonzero(np.abs(response - target) > band * size)
-    settling: float | None = None
-    if outside.size == 0:
-        settling = 0.0
-    elif outside[-1] < len(time) - 1:
-        settling = float(time[outside[-1] + 1] - start)
-    return StepFigures(overshoot, rise, settling)
+    return StepFigures(float(overshoot), rise, None if np.isnan(settling) else float(settling))
 
 
 def step_figures_many(time: np.ndarray, responses: np.ndarray, amplitude: float, *, final: float | None = None,
                       start: float = 0.0, band: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
     """Overshoot (percent) and settling time (s) of every row of ``responses`` (shape ``(n_runs,
-    len(time))``): :func:`step_figures`'s definitions and arithmetic row by row, NaN where a row has
+    len(time))``): :func:`step_figures`'s definitions (it computes them here, for one row), NaN where a row has
     no settling time (still outside the band at its last sample); :func:`step_metrics`'s convention for
     ``amplitude == 0`` (a move that does not end): overshoot 0, no settling time (NaN)."""
     time = np.asarray(time, dtype=float)
