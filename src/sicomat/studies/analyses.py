@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -209,12 +209,10 @@ def _tune(v: _Variant, opts: StudyOptions) -> None:
     from ..tasks.analysis import tuned_machine
     from ..tuning.frequency import TuningTargets, tune_frequency
 
-    t = opts.tune
-    targets = TuningTargets(
-        velocity_crossover=t.get("velocity_crossover"), velocity_phase_margin=t.get("velocity_phase_margin") or 45.0,
-        position_phase_margin=None if t.get("position_crossover") is not None
-        else (t.get("position_phase_margin") or 80.0),
-        position_crossover=t.get("position_crossover"), min_gain_margin=t.get("min_gain_margin") or 6.0)
+    given: dict[str, Any] = {key: value for key, value in opts.tune.items() if value is not None}
+    if "position_crossover" in given:      # a position crossover instead of the position phase margin
+        given["position_phase_margin"] = None
+    targets = replace(TuningTargets(), **given)   # the rest: TuningTargets' defaults (45°, 80°, 6 dB, 2π f_meca/4)
     result = tune_frequency(v.loop, targets, suggest_notch=False)
     g, a = result.tuned, result.achieved
     two_pi = 2 * math.pi

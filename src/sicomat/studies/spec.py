@@ -157,11 +157,11 @@ class Constraint(_Strict):
 class TuneOptions(_Strict):
     """``[tune]``: the frequency approach's targets (as ``sicomat tune``; units allowed)."""
 
-    velocity_crossover: float | str | None = None
-    velocity_phase_margin: float | str = 45.0
+    velocity_crossover: float | str | None = None      # unset: TuningTargets' defaults, as sicomat tune's
+    velocity_phase_margin: float | str | None = None
     position_phase_margin: float | str | None = None
     position_crossover: float | str | None = None
-    min_gain_margin: float | str = 6.0
+    min_gain_margin: float | str | None = None
 
 
 class SimulateOptions(_Strict):
