@@ -21,7 +21,10 @@ from ..errors import ModelError, SicomatError
 from .options import StudyOptions
 
 if TYPE_CHECKING:  # pragma: no cover
+    from collections.abc import Sequence
+
     from ..description.machine import Machine
+    from .spec import Constraint
 
 __all__ = ["METRICS", "UNITS", "SIZE_CHECKS", "metric_names", "Chunk", "ChunkResult", "run_chunk",
            "constraints_hold"]
@@ -320,12 +323,9 @@ _ANALYSES: dict[str, Callable[[_Variant, StudyOptions], None]] = {
     "modal": _modal, "tune": _tune, "margins": _margins, "circle": _circle, "size": _size}
 
 
-def constraints_hold(row: dict[str, Any], constraints: tuple[str, ...] | list[str]) -> bool:
+def constraints_hold(row: dict[str, Any], constraints: "Sequence[Constraint]") -> bool:
     """Whether every constraint holds on ``row``; a missing or NaN value fails its constraint."""
-    from .spec import Constraint
-
-    for text in constraints:
-        c = Constraint.parse(text)
+    for c in constraints:
         value = row.get(c.metric)
         bound = row.get(c.bound) if isinstance(c.bound, str) else c.bound
         if value is None or bound is None or _isnan(value) or _isnan(bound):
