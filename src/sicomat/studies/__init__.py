@@ -110,16 +110,11 @@ class Study:
     def _check_outputs(self, table: Path, figures: bool) -> None:
         """Before any work: the output folder made, and every file the run will write there allowed by the
         output policy (``docs/outputs.md``: a regular file or a new name, never the study or its base model)."""
-        from ..errors import OutputError
         from ..io.atomic import check_output
+        from .engine import make_folders
         from .results import FIGURES
 
-        if self.out.exists() and not self.out.is_dir():
-            raise OutputError(f"{self.out}: not a folder; --out names the folder that receives the study's table")
-        try:
-            (self.out / "chunks").mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(f"{self.out}: cannot be created ({exc.strerror or exc})") from None
+        make_folders(self.out)
         inputs = {"the study file": self.path, "the base model": self.plan.base_path}
         check_output(table, "parquet" if table.suffix == ".parquet" else "csv", inputs=inputs)
         check_output(self.out / "manifest.json", "json", inputs=inputs)

@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..progress import ProgressCallback
     from .variants import StudyPlan
 
-__all__ = ["run_plan", "chunk_size_for", "EngineRun", "CHUNK_PATTERN"]
+__all__ = ["run_plan", "make_folders", "chunk_size_for", "EngineRun", "CHUNK_PATTERN"]
 
 CHUNK_PATTERN = "chunk-{:06d}.parquet"
 MANIFEST = "manifest.json"
@@ -70,8 +70,9 @@ def fingerprint(plan: "StudyPlan", chunk: int) -> str:
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
 
 
-def _prepare_out(out: Path, fp: str, resume: bool, plan: "StudyPlan", chunk: int) -> set[int]:
-    """The output folder ready; the chunks already on disk that ``resume`` keeps."""
+def make_folders(out: Path) -> Path:
+    """The output folder and its ``chunks/`` made (or found); an :class:`OutputError` when either is taken by
+    something that is not a folder. Returns the chunks' folder."""
     if out.exists() and not out.is_dir():
         raise OutputError(f"{out}: not a folder; --out names the folder that receives the study's table")
     chunks_dir = out / "chunks"
@@ -81,6 +82,12 @@ def _prepare_out(out: Path, fp: str, resume: bool, plan: "StudyPlan", chunk: int
         raise OutputError(f"{out}: cannot be created ({exc.strerror or exc})") from None
     if not chunks_dir.is_dir():
         raise OutputError(f"{chunks_dir}: not a folder; the study writes its chunks there")
+    return chunks_dir
+
+
+def _prepare_out(out: Path, fp: str, resume: bool, plan: "StudyPlan", chunk: int) -> set[int]:
+    """The output folder ready; the chunks already on disk that ``resume`` keeps."""
+    chunks_dir = make_folders(out)
     manifest = out / MANIFEST
     done: set[int] = set()
     old = None
