@@ -105,12 +105,13 @@ class StudyPlan:
 
 
 def _toml(value: Any) -> str:
-    """``value`` as the right-hand side of ``--set KEY=VALUE`` (a TOML value)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float, np.floating, np.integer)):
-        return repr(float(value)) if isinstance(value, (float, np.floating)) else str(int(value))
-    return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'
+    """``value`` as the right-hand side of ``--set KEY=VALUE`` (a TOML value, written by tomli_w: its
+    escapes of quotes, backslashes and control characters)."""
+    import tomli_w
+
+    if isinstance(value, np.generic):
+        value = value.item()
+    return tomli_w.dumps({"v": value})[len("v = "):].rstrip("\n")
 
 
 def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
