@@ -193,17 +193,18 @@ def _nan(x: Any) -> float:
 
 
 def _modal(v: _Variant, opts: StudyOptions) -> None:
-    from ..mechanics.modal import modal_analysis
     from ..robotics.lowering import axis_mechanics
 
-    result = modal_analysis(axis_mechanics(v.machine, opts.axis))
+    # the loop's own mechanics when there is a loop (axis_mechanics built it): its modes, computed once, also
+    # serve the tuning's and the margins' frequency grids
+    mech = v.loop.mechanics if v.loop is not None else axis_mechanics(v.machine, opts.axis)
+    result = mech.modes()
     flexible = sorted((m for m in result.modes if not m.rigid), key=lambda m: m.undamped_hz)
     for k in range(3):
         v.row[f"modal.f{k + 1}_hz"] = flexible[k].undamped_hz if k < len(flexible) else math.nan
     v.row["modal.zeta1"] = flexible[0].damping_ratio if flexible else math.nan
     v.row["modal.f_meca_hz"] = _nan(result.f_meca_hz)
     if v.loop is not None:   # the moving mass referred to the axis: phi' M phi, phi the rigid motion per unit axis
-        mech = v.loop.mechanics
         phi, _ = mech.rigid_motion(mech.actuator(v.loop.actuator).vector, v.loop.tool)
         v.row["modal.moving_mass"] = float(phi @ mech.mass @ phi)
 
