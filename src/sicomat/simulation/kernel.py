@@ -460,22 +460,33 @@ def _cubic_positive(f0, f1, f2, M3, dt):
 
 
 @njit(cache=True, error_model="numpy", inline='always')
-def _taylor_clear(z, g0, xi, K3, D, c, dt, stuck, dirn, static, nx):
-    """True when, from the Taylor polynomial of degree 2 at the sub-step's start ``z`` and the
-    bound ``K3 @ xi`` on the third derivative, no link can pass its event within ``dt``. This
-    proves the start of a segment where an event function starts at its threshold, which no
-    chord can (a link that has just broken away slides from zero velocity)."""
+def _taylor_clear(z, zc, g0, g1, xi, K3, D, c, dt, stuck, dirn, static, nx):
+    """True when no link can pass its event within a sub-step of length ``dt`` from ``z`` to ``zc``
+    (event values ``g0``, ``g1``), by the Taylor polynomials of degree 2 at both ends: the one at
+    ``z`` over the first half, the one at ``zc`` (backwards in time) over the second, each within
+    ``s³/6 K3 @ xi`` of the event function (``K3 @ xi`` bounds its third derivative over the whole
+    segment from where ``xi`` was taken, so at either end). This proves the start of a segment where
+    an event function starts at its threshold, which no chord can (a link that has just broken away
+    slides from zero velocity), and a slow function that bends near its threshold, which the chord's
+    envelope (its curvature bound over the whole sub-step) cannot: each polynomial is asked to hold
+    over half the sub-step, with an eighth of the remainder."""
     nz = z.shape[0]
+    half = 0.5 * dt
     for j in range(stuck.shape[0]):
         M3 = _dot2(K3, c, j, xi, nx)
         d1 = _dot3(D, c, j, 0, z, nz)
         d2 = _dot3(D, c, j, 1, z, nz)
+        e1 = _dot3(D, c, j, 0, zc, nz)
+        e2 = _dot3(D, c, j, 1, zc, nz)
         if stuck[j]:
             s = static[j]
-            if not (_cubic_positive(s - g0[j], -d1, -d2, M3, dt)
-                    and _cubic_positive(s + g0[j], d1, d2, M3, dt)):
+            if not (_cubic_positive(s - g0[j], -d1, -d2, M3, half)
+                    and _cubic_positive(s + g0[j], d1, d2, M3, half)
+                    and _cubic_positive(s - g1[j], e1, -e2, M3, half)
+                    and _cubic_positive(s + g1[j], -e1, e2, M3, half)):
                 return False
-        elif not _cubic_positive(g0[j], dirn[j] * d1, dirn[j] * d2, M3, dt):
+        elif not (_cubic_positive(g0[j], dirn[j] * d1, dirn[j] * d2, M3, half)
+                  and _cubic_positive(g1[j], -dirn[j] * e1, dirn[j] * e2, M3, half)):
             return False
     return True
 
@@ -487,8 +498,9 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
     ``end_event`` whether one is past its event) contains an event or could.
 
     Sub-steps are binary fractions ``h / 2**l``, taken in time order: a fraction twice the last
-    one taken (the whole step at first), or the largest that fits in the rest of the step, is
-    tried and halved while it may hold an event, i.e. while an
+    one taken (the whole step at first; after an event, the largest that fits in the rest of the
+    step: events fall anywhere in a step, and most leave the rest of it free), or the largest
+    that fits in the rest of the step, is tried and halved while it may hold an event, i.e. while an
     event function is past its event at its end, or its chord and interpolation envelope (from
     the modal magnitudes ``xi`` at the segment's start) cross the threshold inside. A finest sub-step is taken in any
     case; an event at its end is resolved there (and the bounds recomputed in the new
@@ -530,7 +542,7 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
             if lev == levels:
                 break
             if not event and (_envelope_clear(g0, g1, xi, KU, KP, cfg, lev, stuck, static, nx)
-                              or _taylor_clear(z, g0, xi, K3, D, cfg, step / (1 << lev), stuck,
+                              or _taylor_clear(z, zc, g0, g1, xi, K3, D, cfg, step / (1 << lev), stuck,
                                                dirn, static, nx)):
                 break
             if event:
@@ -539,7 +551,7 @@ def _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G, static, 
         for i in range(nx):
             z[i] = zc[i]
         pos += 1 << (levels - lev)
-        grow = lev - 1 if lev > 0 else 0
+        grow = lev - 1 if lev > 0 and not event else 0
         if event:
             cfg = _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp)
             for i in range(nx, nz):
@@ -892,7 +904,7 @@ def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit
                     _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
                     carried = True
                     clear = (_envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
-                             or _taylor_clear(z, g0, xi, K3, D, cfg, step, stuck, dirn, static,
+                             or _taylor_clear(z, zc, g0, g1, xi, K3, D, cfg, step, stuck, dirn, static,
                                               nx))
                 in_step = not clear
         if in_step:
