@@ -320,7 +320,7 @@ def _kernel_layout(parts: Sequence[ContinuousPart], step: float, levels: int,
                    links: Sequence[int] | np.ndarray | None) -> tuple[np.ndarray, ...]:
     """The discretisation in the kernel's layout: ``[Phi Gamma]ᵀ`` (shape ``(n_distinct, 2**nf,
     levels + 1, nx + nw, nx)``), ``[Lx Lu Lf]``, the projections, for each part the index of its
-    discretisation (equal parts share one), and the in-step event bounds ``PsiT, KU, KP, K3, D, pair, GH, kd`` of
+    discretisation (equal parts share one), and the in-step event bounds ``PsiT, KU, KP, K3, D, pair`` of
     :func:`sicomat.simulation.envelope.curvature_bounds`."""
     E, L, P, index, nx, PE, G = _discretized(parts, step, levels, links)
     bounds = (curvature_bounds(PE, L, G, float(step), int(levels)) if L.shape[-2]
@@ -333,8 +333,7 @@ def _no_bounds(PE: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, ...]:
     n_parts, nc, nx, nz = PE.shape
     return (np.zeros((n_parts, nc, nz, nx)), np.zeros((n_parts, nc, 0, 1, nx)),
             np.zeros((n_parts, nc, 0, 1, nx)), np.zeros((n_parts, nc, 0, nx)),
-            np.zeros((n_parts, nc, 0, 2, nz)), np.zeros((n_parts, nc, nx), dtype=np.int8),
-            np.zeros((n_parts, nc, nx, nz - nx + 1)), np.zeros((n_parts, nc), dtype=np.int64))
+            np.zeros((n_parts, nc, 0, 2, nz)), np.zeros((n_parts, nc, nx), dtype=np.int8))
 
 
 def _discretization(E: np.ndarray, L: np.ndarray, P: np.ndarray, nx: int, step: float,

@@ -18,8 +18,7 @@ close fast eigenvalues (componentwise suprema by a piecewise Taylor series with 
 Modal coordinates matter: in raw coordinates a stiff spring's two ends would each look like a
 large force. The same holds for ``g'''`` and, for the fast blocks (invertible ``T_b``), for the
 block's part of ``g`` itself (``r S_b T_b⁻¹ e^{T_b t} ξ_b``, its amplitude). The kernel computes
-``|ξ|`` from ``ξ = Psi z`` (``Psi = Y [A_c B_c]``) at a segment's start, or carries a bound of it
-from the last step (:func:`_growth`), and on a sub-step of level ``l`` a link's event function
+``|ξ|`` from ``ξ = Psi z`` (``Psi = Y [A_c B_c]``) at a segment's start, and on a sub-step of level ``l`` a link's event function
 lies within ``KU[l] @ |ξ| + τ(1 - τ) KP[l] @ |ξ|`` of its chord (each block contributing twice
 its amplitude or its interpolation remainder ``δ² sup|g_b''| / 2``, the smaller), and within
 ``s³/6 K3 @ |ξ|`` of its Taylor polynomial of degree 2 at the sub-step's start; a sub-step
@@ -310,40 +309,6 @@ def _expm(T, t):
 
 
 @njit(cache=True)
-def _growth(Y, S, A, Bu, bstart, bsize, bkind, h):
-    """Bounds that carry the modal magnitudes ``|ξ|`` of the state derivative over one whole step
-    and the latch of new inputs: ``|ξ(t + h)| <= G |ξ(t)| + H |Δu|`` componentwise (each pair by
-    its Euclidean norm). Returns ``[G H]`` (``G`` dense on ``[:kd, :kd]``, its diagonal from
-    column ``nx`` on for ``i >= kd``; ``H`` from column ``nx + 1``) and ``kd``, the extent of the
-    leading general blocks (the Euclidean ones follow, each carried by its growth
-    ``e^{μ h}``, ``μ`` its logarithmic norm)."""
-    nx = S.shape[1]
-    nu = Bu.shape[1]
-    out = np.zeros((nx, nx + 1 + nu))
-    kd = 0
-    YB = Y @ Bu
-    AS = A @ S
-    for b in range(bstart.shape[0]):
-        st, sz, kind = bstart[b], bsize[b], bkind[b]
-        T = np.ascontiguousarray(Y[st:st + sz]) @ np.ascontiguousarray(AS[:, st:st + sz])
-        if kind == _EUCLID_BLOCK:
-            if sz == 1:
-                mu = T[0, 0]
-            else:
-                a, c, e = T[0, 0], 0.5 * (T[0, 1] + T[1, 0]), T[1, 1]
-                mu = 0.5 * (a + e) + math.hypot(0.5 * (a - e), c)
-            out[st, nx] = math.exp(min(mu * h, 700.0)) * (1.0 + MARGIN)
-            for m in range(nu):
-                out[st, nx + 1 + m] = np.sqrt(np.sum(YB[st:st + sz, m] ** 2)) * (1.0 + MARGIN)
-        else:
-            kd = st + sz          # the general blocks come first (see _decompose)
-            E = np.abs(_expm(T, h)) * (1.0 + MARGIN)
-            out[st:st + sz, st:st + sz] = E
-            out[st:st + sz, nx + 1:] = np.abs(YB[st:st + sz]) * (1.0 + MARGIN)
-    return out, kd
-
-
-@njit(cache=True)
 def _assemble(Z, X, k, lam, V):
     """:func:`_decompose` after the Schur form ``Z`` (its first ``k`` columns the slow invariant
     subspace), the Sylvester solution ``X`` and the eigenpairs ``lam, V`` of the fast diagonal
@@ -502,14 +467,12 @@ def _reference_arrays(A: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
 
 @njit(cache=True)
 def _configuration(PEc, Lc, Gv, c, S, Y, bstart, bsize, bkind, h, levels,
-                   PsiT, KU, KP, K3, D, pair, GH):
+                   PsiT, KU, KP, K3, D, pair):
     """Every bound of :func:`curvature_bounds` for one configuration ``c`` (``PEc = [A_c B_c]``,
     ``Lc`` its holding-force rows, ``Gv`` the sliding-velocity rows) into the output slices;
-    returns ``kd``. Compiled: it runs once per configuration and batch variant."""
+    compiled: it runs once per configuration and batch variant."""
     nx = PEc.shape[0]
-    nz = PEc.shape[1]
     nf = Lc.shape[0]
-    nu = nz - nx - nf
     A = np.ascontiguousarray(PEc[:, :nx])
     Psi = Y @ PEc
     PsiT[:, :] = Psi.T
@@ -528,9 +491,6 @@ def _configuration(PEc, Lc, Gv, c, S, Y, bstart, bsize, bkind, h, levels,
     K3[:] = k3
     D[:, 0] = R @ PEc
     D[:, 1] = (R @ A) @ PEc
-    gh, kd = _growth(Y, S, A, np.ascontiguousarray(PEc[:, nx:nx + nu]), bstart, bsize, bkind, h)
-    GH[:] = gh
-    return kd
 
 
 def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
@@ -565,9 +525,6 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
     pair : ndarray of int8, shape (n_parts, 2**nf, nx)
         1 where coordinates ``i, i+1`` form a Euclidean pair (``|ξ|_i`` is their norm, the
         coefficients at ``i + 1`` are 0), else 0.
-    GH, kd : ndarray, shapes (n_parts, 2**nf, nx, nx + 1 + nu) and (n_parts, 2**nf)
-        The bounds of :func:`_growth` that carry ``|ξ|`` from step to step (the kernel then
-        projects the state only when the carried bound cannot clear a step).
     """
     n_parts, nc, nx, nz = PE.shape
     nf = L.shape[2]
@@ -577,17 +534,14 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
     K3 = np.zeros((n_parts, nc, nf, nx))
     D = np.zeros((n_parts, nc, nf, 2, nz))
     pair = np.zeros((n_parts, nc, nx), dtype=np.int8)
-    nu = nz - nx - nf
-    GH = np.zeros((n_parts, nc, nx, nx + 1 + nu))
-    kd = np.zeros((n_parts, nc), dtype=np.int64)
     PE = np.ascontiguousarray(PE, dtype=float)
     L = np.ascontiguousarray(L, dtype=float)
     G = np.ascontiguousarray(G, dtype=float)
     for v in range(n_parts):
         for c in range(nc):
             S, Y, bstart, bsize, bkind = _decompose_arrays(PE[v, c, :, :nx], step)
-            kd[v, c] = _configuration(PE[v, c], L[v, c], G[v], c, np.ascontiguousarray(S),
+            _configuration(PE[v, c], L[v, c], G[v], c, np.ascontiguousarray(S),
                                       np.ascontiguousarray(Y), bstart, bsize, bkind, float(step),
                                       int(levels), PsiT[v, c], KU[v, c], KP[v, c], K3[v, c],
-                                      D[v, c], pair[v, c], GH[v, c])
-    return tuple(np.ascontiguousarray(a) for a in (PsiT, KU, KP, K3, D, pair, GH, kd))
+                                      D[v, c], pair[v, c])
+    return tuple(np.ascontiguousarray(a) for a in (PsiT, KU, KP, K3, D, pair))

@@ -381,27 +381,6 @@ def _modal_magnitudes(PsiT, pair, c, z, nx, xi):
 
 
 @njit(cache=True, error_model="numpy", inline='always')
-def _carry(GH, kd, c, xi, du, nx, nu, xt):
-    """``xi <- G xi + H du`` (:func:`sicomat.simulation.envelope._growth`): bounds of the modal
-    magnitudes one step later, after the latch of an input that changed by ``du``; dense on the
-    general blocks ``[:kd]``, diagonal on the Euclidean ones."""
-    k = kd[c]
-    for i in range(k):
-        s = 0.0
-        for j in range(k):
-            s += GH[c, i, j] * xi[j]
-        xt[i] = s
-    for i in range(k, nx):
-        xt[i] = GH[c, i, nx] * xi[i]
-    for m in range(nu):
-        dm = du[m]
-        for i in range(nx):
-            xt[i] += GH[c, i, nx + 1 + m] * dm
-    for i in range(nx):
-        xi[i] = xt[i]
-
-
-@njit(cache=True, error_model="numpy", inline='always')
 def _may_cross(a, b, U, C):
     """Whether ``p(τ) = a + (b - a) τ - U - C τ (1 - τ)`` (``U, C >= 0``) dips below 0 for some
     ``τ`` in [0, 1]: the chord of a function from ``a`` to ``b`` minus its envelope."""
@@ -722,7 +701,7 @@ def _run_ops(op_code, op_period, op_ip, op_fp, idx, fdata, table, slots, xb, tb,
 def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
               op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, table, n_delay,
               in_slots, out_slots, fr_slots, rec_slots, n_slots,
-              PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, out_ptr, out_col, out_val, G, coulomb,
+              PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, step, out_ptr, out_col, out_val, G, coulomb,
               static, x0, rec_out, states_out, fric_out, stuck_out, x_final):
     """Run ``n_steps`` base steps; returns ``(status, step, events)`` (status 0: completed).
 
@@ -741,25 +720,25 @@ def _simulate(n_steps, rec_every, store_full, max_events, limit_abs, limit_facto
     count, wait, tb, delay_buf = _ops_state(op_code, op_period, op_phase, op_ip, n_delay)
     # z: [x; u; f]; zc: the candidate [x+; u; f]; hold: the holding forces of the stuck links at
     # the current z; g0, g1: event values of the links at z and at zc (see _link_values); xi: modal
-    # magnitudes of the state derivative (_modal_magnitudes); du: |change of the held input| at the latch
+    # magnitudes of the state derivative (_modal_magnitudes)
     return _simulate_steps(
         n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
         op_code, op_period, op_ip, op_fp, idx, fdata, table,
         in_slots, out_slots, fr_slots, rec_slots, n_slots,
-        PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, out_ptr, out_col, out_val, G, coulomb,
+        PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, step, out_ptr, out_col, out_val, G, coulomb,
         static, x0, rec_out, states_out, fric_out, stuck_out, x_final,
         np.zeros(n_slots), xb0.copy(), count, wait, tb, delay_buf, np.zeros(nz), np.zeros(nz),
         np.zeros(nz), np.zeros(nf, dtype=np.bool_), np.ones(nf), np.zeros(nf), np.zeros(nf),
-        np.zeros(nf), np.zeros(nx), np.zeros(nx), np.zeros(nu))
+        np.zeros(nf), np.zeros(nx))
 
 
 @_njit_unrefcounted
 def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit_factor, warmup,
                     op_code, op_period, op_ip, op_fp, idx, fdata, table,
                     in_slots, out_slots, fr_slots, rec_slots, n_slots,
-                    PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, out_ptr, out_col, out_val, G,
+                    PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, step, out_ptr, out_col, out_val, G,
                     coulomb, static, x0, rec_out, states_out, fric_out, stuck_out, x_final,
-                    slots, xb, count, wait, tb, delay_buf, z, zc, zp, stuck, dirn, hold, g0, g1, xi, xt, du):
+                    slots, xb, count, wait, tb, delay_buf, z, zc, zp, stuck, dirn, hold, g0, g1, xi):
     """The base steps of :func:`_simulate`, on state and scratch arrays allocated by it.
 
     Compiled without numba's reference counting (``_nrt=False``: it allocates nothing, and every
@@ -779,7 +758,6 @@ def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit
     n_fr = fr_slots.shape[0]
 
     hold_ok = False
-    carried = False            # xi bounds the magnitudes at z's step start once carried (_carry)
     for i in range(nx):
         z[i] = x0[i]
     # links at zero sliding velocity start stuck
@@ -832,7 +810,6 @@ def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit
         # (3) latch the held input; a stuck link may break away at once
         for i in range(nu):
             v = slots[_u(in_slots[i])]
-            du[i] = abs(v - z[nx + i])
             z[nx + i] = v
         hold_ok = cfg == 0          # no stuck link: nothing to hold
         if cfg != 0:
@@ -842,7 +819,6 @@ def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit
                 if stuck[j] and abs(hold[j]) > static[j]:
                     cfg = _resolve(z, stuck, dirn, Proj, Lz, G, static, coulomb, nx, nu, zp)
                     hold_ok = False
-                    carried = False
                     break
 
         # (4) records
@@ -894,19 +870,13 @@ def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit
                     _holding_forces(Lz, cfg, stuck, z, hold)
                 for j in range(nf):
                     g0[j] = hold[j] if stuck[j] else dirn[j] * _dot1(G, j, z, nx)
-                # the modal magnitudes carried from the last step bound the new ones (cheap);
-                # the state is projected only when they cannot clear the step
-                clear = False
-                if carried:
-                    _carry(GH, kd, cfg, xi, du, nx, nu, xt)
-                    clear = _envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
-                if not clear:
-                    _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
-                    carried = True
-                    clear = (_envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
-                             or _taylor_clear(z, zc, g0, g1, xi, K3, D, cfg, step, stuck, dirn, static,
-                                              nx))
-                in_step = not clear
+                # the modal magnitudes at the step's start: one projection of the state (a bound
+                # carried from the last step cost as much and cleared fewer steps: the latch of a new
+                # input inflates it)
+                _modal_magnitudes(PsiT, pair, cfg, z, nx, xi)
+                in_step = not (_envelope_clear(g0, g1, xi, KU, KP, cfg, 0, stuck, static, nx)
+                               or _taylor_clear(z, zc, g0, g1, xi, K3, D, cfg, step, stuck, dirn, static,
+                                                nx))
         if in_step:
             cfg, n_events = _advance_with_events(z, zc, zp, cfg, stuck, dirn, PGT, Lz, Proj, G,
                                                  static, coulomb, nx, nu, max_events, g0, g1,
@@ -914,7 +884,6 @@ def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit
                                                  end_ev)
             total_events += n_events
             hold_ok = False
-            carried = False
         else:
             for i in range(nx):
                 z[i] = zc[i]
@@ -938,7 +907,7 @@ def _simulate_steps(n_steps, rec_every, store_full, max_events, limit_abs, limit
 def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, warmup,
                     op_code, op_period, op_phase, op_ip, op_fp, idx, fdata, xb0, tables, tix,
                     n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots,
-                    PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, GH, kd, step, cont, out_ptr,
+                    PGT, Lz, Proj, PsiT, KU, KP, K3, D, pair, step, cont, out_ptr,
                     out_col,
                     out_val, G,
                     coulomb, static, x0, rec_out, x_final, status, k_bad, v_first, v_last):
@@ -960,7 +929,7 @@ def _simulate_batch(n_steps, rec_every, max_events, limit_abs, limit_factor, war
             n_steps, rec_every, False, max_events, limit_abs, limit_factor, warmup,
             op_code, op_period, op_phase, op_ip, op_fp[v], idx, fdata[v], xb0[v], tables[tix[v]],
             n_delay, in_slots, out_slots, fr_slots, rec_slots, n_slots, PGT[c], Lz[c], Proj[c],
-            PsiT[c], KU[c], KP[c], K3[c], D[c], pair[c], GH[c], kd[c], step,
+            PsiT[c], KU[c], KP[c], K3[c], D[c], pair[c], step,
             out_ptr, out_col, out_val[v], G[v], coulomb[v], static[v], x0[v], rec_out[v],
             states_dummy, fric_dummy, stuck_dummy, x_final[v])
         status[v] = st
@@ -1053,7 +1022,7 @@ def _batch_arguments(programs: Sequence[HybridProgram], first: int, last: int, r
                         or not np.array_equal(low.struct[name], ref))
             raise ModelError(f"variant {v} does not have the structure of variant 0 ({what} "
                              f"differs)")
-    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices(part, reference.links, levels)
+    PG, Lz, Proj, cont, PsiT, KU, KP, K3, D, pair = kernel_matrices(part, reference.links, levels)
     nums = {name: np.ascontiguousarray(np.stack([low.nums[name] for low in lows]))
             for name in reference.nums if name != "table"}
     tables, tix = _shared([low.nums["table"] for low in lows])
@@ -1064,7 +1033,7 @@ def _batch_arguments(programs: Sequence[HybridProgram], first: int, last: int, r
     return (s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], nums["op_fp"], s["idx"],
             nums["fdata"], nums["xb0"], tables, tix, int(s["shapes"][5]), s["in_slots"],
             s["out_slots"], s["fr_slots"], s["rec_slots"], int(programs[0].n_slots), PG, Lz, Proj, PsiT, KU,
-            KP, K3, D, pair, GH, kd, float(step), cont,
+            KP, K3, D, pair, float(step), cont,
             out_ptr, out_col, out_val, nums["G"], nums["coulomb"], nums["static"], nums["x0"])
 
 
@@ -1182,7 +1151,7 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
     _check_run_args(n_steps, levels, max_events)
     n_steps = int(n_steps)
     low = lower(program)
-    PG, Lz, Proj, _, PsiT, KU, KP, K3, D, pair, GH, kd = kernel_matrices([program], low.links, int(levels))
+    PG, Lz, Proj, _, PsiT, KU, KP, K3, D, pair = kernel_matrices([program], low.links, int(levels))
     s, m = low.struct, low.nums
     out_ptr, out_col, out_val = sparse_outputs(m["CD"][None])
     nf = low.links.size
@@ -1198,7 +1167,7 @@ def run(program: HybridProgram, n_steps: int, levels: int = DEFAULT_LEVELS, *,
         s["op_code"], s["op_period"], s["op_phase"], s["op_ip"], m["op_fp"], s["idx"], m["fdata"],
         m["xb0"], m["table"], int(s["shapes"][5]), s["in_slots"], s["out_slots"],
         s["fr_slots"], s["rec_slots"], int(program.n_slots), PG[0], Lz[0], Proj[0], PsiT[0], KU[0], KP[0],
-        K3[0], D[0], pair[0], GH[0], kd[0], float(program.step), out_ptr, out_col,
+        K3[0], D[0], pair[0], float(program.step), out_ptr, out_col,
         out_val[0], m["G"], m["coulomb"], m["static"], m["x0"], rec, states, fric, stuck, x_final)
     if status != _OK:
         raise _diverged(status, k_bad, program.step, None)

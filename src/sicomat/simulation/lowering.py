@@ -312,7 +312,7 @@ def lower(program: HybridProgram, record: Sequence[int] | None = None,
 def kernel_matrices(programs: Sequence[HybridProgram], links: np.ndarray,
                      levels: int) -> tuple[np.ndarray, ...]:
     """``[Phi Gamma]ᵀ`` (transposed), ``[Lx Lu Lf]`` and projections of every distinct continuous
-    part, the index of each program's part in them, and the in-step event bounds ``PsiT, KU, KP, K3, D, pair, GH, kd``
+    part, the index of each program's part in them, and the in-step event bounds ``PsiT, KU, KP, K3, D, pair``
     (:func:`sicomat.simulation.envelope.curvature_bounds`)."""
     return _kernel_layout([p.continuous for p in programs], programs[0].step,
                           levels if links.size else 0, links)
