@@ -205,7 +205,9 @@ def _propagate_rows(MT, c, z, out, nx):
     Each sum starts at 0.0 and adds the terms in column order (the first column is added in the
     initialising step). Rows are taken four at a time, their four sums kept in registers over the
     columns (a sum read and written back in memory at every column waited on the store at each one);
-    each row's sum is the same sequence of operations as one row at a time.
+    the last one to three rows together the same way (one at a time, each waited on its own chain
+    of additions: with 11 states, three rows cost as much as the eight before them). Each row's sum
+    is the same sequence of operations as one row at a time.
     """
     nz = z.shape[0]
     z0 = z[0]
@@ -226,12 +228,33 @@ def _propagate_rows(MT, c, z, out, nx):
         out[i + 2] = s2
         out[i + 3] = s3
         i += 4
-    while i < nx:
+    r = nx - i
+    if r == 3:
+        s0 = 0.0 + MT[c, 0, i] * z0
+        s1 = 0.0 + MT[c, 0, i + 1] * z0
+        s2 = 0.0 + MT[c, 0, i + 2] * z0
+        for j in range(1, nz):
+            zj = z[j]
+            s0 += MT[c, j, i] * zj
+            s1 += MT[c, j, i + 1] * zj
+            s2 += MT[c, j, i + 2] * zj
+        out[i] = s0
+        out[i + 1] = s1
+        out[i + 2] = s2
+    elif r == 2:
+        s0 = 0.0 + MT[c, 0, i] * z0
+        s1 = 0.0 + MT[c, 0, i + 1] * z0
+        for j in range(1, nz):
+            zj = z[j]
+            s0 += MT[c, j, i] * zj
+            s1 += MT[c, j, i + 1] * zj
+        out[i] = s0
+        out[i + 1] = s1
+    elif r == 1:
         s0 = 0.0 + MT[c, 0, i] * z0
         for j in range(1, nz):
             s0 += MT[c, j, i] * z[j]
         out[i] = s0
-        i += 1
 
 
 @njit(cache=True, error_model="numpy", inline='always')
