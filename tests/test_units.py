@@ -197,3 +197,26 @@ def test_offset_units_are_not_taken_as_factors():
         with pytest.raises(ValueError):
             parse_quantity("10 degC", kelvin)
     assert parse_quantity("10 K", kelvin) == 10.0
+
+
+@pytest.mark.parametrize("text, si", [("24.8 1/s", "1/s"), ("94.26 1/min", "1/s"), ("2.5e3 1/s**2", "1/s**2"),
+                                      ("-0.5 1/m", "1/m"), ("7 1/ms", "1/s")])
+def test_reciprocal_units_take_the_per_unit_factor_and_agree_with_pint(text, si):
+    # "<number> 1/<unit>" (a gain: Kv = "24.8 1/s") goes through the cached per-unit factor, not a full
+    # parse per value; pint's own parse of the whole text is the reference (both kept to 15 digits)
+    from sicomat.description.units import _parse_with_pint
+
+    unit = Unit(si, "a test quantity")
+    assert parse_quantity(text, unit) == float(f"{_parse_with_pint(text, unit):.15g}")
+
+
+def test_a_reciprocal_unit_is_parsed_by_pint_once_per_unit_not_per_value(monkeypatch):
+    import sicomat.description.units as units
+
+    unit = Unit("1/s", "a velocity gain")
+    assert parse_quantity("24.8 1/s", unit) == 24.8          # fills the factor of "1/s"
+
+    def refuse(text, unit):
+        raise AssertionError(f"pint parsed {text!r} again")
+    monkeypatch.setattr(units, "_parse_with_pint", refuse)
+    assert parse_quantity("19.84 1/s", unit) == 19.84
