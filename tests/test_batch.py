@@ -140,6 +140,38 @@ def test_step_figures_many_row_by_row_equals_step_figures():
     assert np.all(overshoot == 0.0) and np.all(np.isnan(settling))
 
 
+def test_following_figures_many_are_the_numpy_definitions():
+    # the compiled pass against numpy written out from step_metrics' definitions: readings in sensor units
+    # (gain 1e4 per metre), a settling, a ringing, an unsettled and a NaN run, both move directions
+    from sicomat.simulation.timeseries import following_figures_many
+
+    t = np.linspace(0.0, 0.5, 4001)
+    gains = np.array([1e4, 2e4, 5e3, 1e4])
+    for distance in (0.01, -0.01):
+        setpoint = distance * np.minimum(t / 0.1, 1.0)
+        errors = distance * np.array([np.exp(-30 * t), np.exp(-20 * t) * np.cos(60 * t), 0.5 * np.exp(-t),
+                                      np.exp(-30 * t)])
+        readings = (setpoint - errors) * gains[:, None]
+        effort = np.sin(np.outer([1.0, 2.0, 3.0, 4.0], t)) * np.array([[3.0], [-2.0], [1.0], [5.0]])
+        readings[3, 100] = np.nan
+        kt = np.array([1.5, 2.0, 0.5, 1.0])
+        got = following_figures_many(t, setpoint, readings, gains, effort, kt, distance, start=0.0)
+        error = setpoint[None, :] - readings / gains[:, None]
+        overshoot, settling = step_figures_many(t, setpoint[None, :] - error, distance, final=setpoint[-1])
+        with np.errstate(invalid="ignore"):
+            want = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1], overshoot,
+                    settling, kt * np.max(np.abs(effort), axis=1)]
+        for name, g, w in zip(("max", "rms", "final", "overshoot", "settling", "effort"), got, want):
+            # RMS: four partial sums against numpy's pairwise sum, n eps / 4 relative (see the function)
+            rtol = 4001 * np.finfo(float).eps / 4 if name == "rms" else 0.0
+            np.testing.assert_allclose(g[:3], w[:3], rtol=rtol, atol=0.0, err_msg=name)
+            assert np.isnan(g[3]) == np.isnan(w[3]) or name in ("final", "effort"), name
+        assert np.isnan(got[4][2])                   # still outside the band at its last sample
+        assert got[3][1] > 0.0 and got[3][0] == 0.0  # the ringing run overshoots, the settling one does not
+    still = following_figures_many(t, np.zeros_like(t), readings[:2] * 0.0, gains[:2], effort[:2], kt[:2], 0.0)
+    assert np.all(still[3] == 0.0) and np.all(np.isnan(still[4]))
+
+
 def test_diverged_variants_have_nan_figures(case):
     _, loop, _, _ = case
     # 60x the velocity gain: the linear loop is unstable (the nonlinear one would only ring at its current limit)

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..progress import notify
-from .timeseries import StepFigures, StepMetrics, TimeSeries, step_figures, step_figures_many, step_metrics
+from .timeseries import StepFigures, StepMetrics, TimeSeries, following_figures_many, step_figures, step_metrics
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..servo.loop import ServoLoop
@@ -291,15 +291,11 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dur
     fine = profile.evaluate(result.time)[0]
     gains = np.array([loop.position_gain for loop in loops])
     kt = np.array([loop.drive.kt for loop in loops])
-    error = fine[None, :] - records[:, :, 0] / gains[:, None]
     bad = np.concatenate([p.diverged for p in parts]) if len(parts) > 1 else result.diverged
-    with np.errstate(invalid="ignore"):
-        figures = [np.max(np.abs(error), axis=1), np.sqrt(np.mean(error ** 2, axis=1)), error[:, -1]]
-        # as axis_series and step_metrics do for simulate(): the actual position is the fine setpoint
-        # minus the following error
-        overshoot, settling = step_figures_many(result.time, fine[None, :] - error, profile.distance,
-                                                final=float(fine[-1]), start=profile.breaks[0])
-        figures += [overshoot, settling, kt * np.max(np.abs(records[:, :, 1]), axis=1)]
+    # as axis_series and step_metrics do for simulate(): the following error from the sensor reading, the
+    # actual position the fine setpoint minus it
+    figures = following_figures_many(result.time, fine, records[:, :, 0], gains, records[:, :, 1], kt,
+                                     profile.distance, start=profile.breaks[0])
     max_error, rms_error, final_error, overshoot, settling, effort = (np.where(bad, np.nan, f) for f in figures)
     return BatchMetrics(max_error, rms_error, final_error, overshoot_percent=overshoot, settling_time=settling,
                         max_effort=effort, diverged=bad, wall_time_s=wall)

@@ -8,11 +8,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numba import njit
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas
 
-__all__ = ["TimeSeries", "StepMetrics", "StepFigures", "step_metrics", "step_figures", "step_figures_many"]
+__all__ = ["TimeSeries", "StepMetrics", "StepFigures", "step_metrics", "step_figures", "step_figures_many",
+           "following_figures_many"]
 
 
 @dataclass(frozen=True)
@@ -89,19 +91,119 @@ def step_figures_many(time: np.ndarray, responses: np.ndarray, amplitude: float,
     len(time))``): :func:`step_figures`'s definitions (it computes them here, for one row), NaN where a row has
     no settling time (still outside the band at its last sample); :func:`step_metrics`'s convention for
     ``amplitude == 0`` (a move that does not end): overshoot 0, no settling time (NaN)."""
-    time = np.asarray(time, dtype=float)
-    responses = np.atleast_2d(np.asarray(responses, dtype=float))
+    time = np.ascontiguousarray(time, dtype=float)
+    responses = np.ascontiguousarray(np.atleast_2d(np.asarray(responses, dtype=float)))
     n_runs, n = responses.shape
     if amplitude == 0 or n == 0:
         return np.zeros(n_runs), np.full(n_runs, np.nan)
     target = float(amplitude if final is None else final)
     sign, size = float(np.sign(amplitude)), abs(float(amplitude))
-    overshoot = np.maximum(0.0, np.max(sign * (responses - target), axis=1) / size * 100)
-    outside = np.abs(responses - target) > band * size
-    last = n - 1 - np.argmax(outside[:, ::-1], axis=1)        # the last sample outside the band
-    after = time[np.minimum(last + 1, n - 1)] - start
-    settling = np.where(~outside.any(axis=1), 0.0, np.where(last < n - 1, after, np.nan))
+    overshoot, settling = np.empty(n_runs), np.empty(n_runs)
+    for v in range(n_runs):
+        overshoot[v], settling[v] = _step_row(time, responses[v], target, sign, size, float(start), float(band))
     return overshoot, settling
+
+
+@njit(cache=True, error_model="numpy")
+def _step_row(time, response, target, sign, size, start, band):
+    """:func:`step_figures_many` of one row in one pass (compiled: a study's batches have thousands of rows
+    of thousands of samples): the overshoot ``max(0, max(sign (r - target)) / size * 100)`` (NaN if a sample
+    is NaN, as numpy's max) and the settling time, the sample after the last one outside
+    ``|r - target| > band size`` (0 if none is, NaN if the last one is)."""
+    n = response.shape[0]
+    peak = -np.inf
+    nan = False
+    limit = band * size
+    last = -1
+    for i in range(n):
+        r = response[i]
+        d = sign * (r - target)
+        if d != d:
+            nan = True
+        elif d > peak:
+            peak = d
+        if abs(r - target) > limit:
+            last = i
+    overshoot = np.nan if nan else max(0.0, peak / size * 100)
+    if last < 0:
+        settling = 0.0
+    elif last < n - 1:
+        settling = time[last + 1] - start
+    else:
+        settling = np.nan
+    return overshoot, settling
+
+
+def following_figures_many(time: np.ndarray, setpoint: np.ndarray, readings: np.ndarray, gains: np.ndarray,
+                           effort: np.ndarray, scale: np.ndarray, amplitude: float, *, start: float = 0.0,
+                           band: float = 0.02) -> tuple[np.ndarray, ...]:
+    """:func:`step_metrics`' figures of many runs of one move, from each run's position readings:
+
+    ``error = setpoint - readings[v] / gains[v]`` (the following error, ``readings`` in sensor units), its
+    maximum magnitude, RMS and last value, the overshoot and settling time of ``setpoint - error`` against
+    the final setpoint (as :func:`step_figures_many`), and the peak effort ``scale[v] max |effort[v]|``.
+    One compiled pass per run, no array of the batch's size beside the inputs (the numpy expressions
+    took 0.6 ms per run of 8000 samples, as long as preparing the run). The RMS sums the squares in
+    four partial sums (numpy's mean sums pairwise: the two agree to ``n eps / 4`` relative, 2e-13 for
+    8000 samples). Returns ``max_error, rms_error, final_error, overshoot_percent, settling_time,
+    max_effort``, each of shape ``(n_runs,)``."""
+    setpoint = np.ascontiguousarray(setpoint, dtype=float)
+    readings = np.asarray(readings, dtype=float)    # views of the kernel's records: strided, not copied
+    effort = np.asarray(effort, dtype=float)
+    n_runs = readings.shape[0]
+    out = np.empty((6, n_runs))
+    sign, size = float(np.sign(amplitude)), abs(float(amplitude))
+    _following_rows(np.ascontiguousarray(time, dtype=float), setpoint, readings,
+                    np.ascontiguousarray(gains, dtype=float), effort, np.ascontiguousarray(scale, dtype=float),
+                    float(setpoint[-1]), sign, size, float(start), float(band), amplitude != 0, out)
+    return tuple(out)
+
+
+@njit(cache=True, error_model="numpy")
+def _following_rows(time, setpoint, readings, gains, effort, scale, target, sign, size, start, band, moves, out):
+    """The rows of :func:`following_figures_many` into ``out`` (shape ``(6, n_runs)``)."""
+    n = setpoint.shape[0]
+    actual = np.empty(n)
+    for v in range(readings.shape[0]):
+        g = gains[v]
+        peak = 0.0
+        s0 = s1 = s2 = s3 = 0.0
+        nan = False
+        e = 0.0
+        for i in range(n):
+            e = setpoint[i] - readings[v, i] / g
+            a = abs(e)
+            if a != a:
+                nan = True
+            elif a > peak:
+                peak = a
+            q = e * e
+            k = i & 3
+            if k == 0:
+                s0 += q
+            elif k == 1:
+                s1 += q
+            elif k == 2:
+                s2 += q
+            else:
+                s3 += q
+            actual[i] = setpoint[i] - e
+        out[0, v] = np.nan if nan else peak
+        out[1, v] = np.sqrt(((s0 + s1) + (s2 + s3)) / n)
+        out[2, v] = e
+        if moves:
+            out[3, v], out[4, v] = _step_row(time, actual, target, sign, size, start, band)
+        else:
+            out[3, v], out[4, v] = 0.0, np.nan
+        top = 0.0
+        nan = False
+        for i in range(n):
+            a = abs(effort[v, i])
+            if a != a:
+                nan = True
+            elif a > top:
+                top = a
+        out[5, v] = scale[v] * (np.nan if nan else top)
 
 
 def step_metrics(time: np.ndarray, setpoint: np.ndarray, actual: np.ndarray, distance: float,
