@@ -44,7 +44,9 @@ friction with true stick–slip on the motor guide.
   of the rounds' ratios, target <= 2.5x. Beside it: the preparation per variant (the stages before
   ``run_batch`` and its one-step run, which is its lowering and discretisation), the kernel's CPU time per
   variant against the bare loop (``run_batch``'s CPU time less its one-step run's, per variant; goal <= 2x),
-  cores used (CPU time / wall time, end to end) and ``run_batch`` on one thread. BLAS runs on one thread.
+  cores used (CPU time / wall time, end to end), ``run_batch`` on one thread and, aside, ``simulate_batch`` of
+  the same loops (what a study calls: the programs, ``run_batch`` recording every step, the figures).
+  BLAS runs on one thread.
 
 Times are wall times (``time.perf_counter``); ours are best of N interleaved runs, with the median
 and worst beside the best because the machine is shared. Run ``python -m benchmarks.bench_simulation``
@@ -74,7 +76,7 @@ from sicomat.lti.response import zoh_matrices  # noqa: E402
 from sicomat.servo.loop import ServoLoop, build_servo_loop, servo_plant  # noqa: E402
 from sicomat.io.modelfile import with_overrides  # noqa: E402
 from sicomat.motion.setpoints import Profile, profile_from_spec  # noqa: E402
-from sicomat.simulation import kernel, loop_program, loop_programs, simulate  # noqa: E402
+from sicomat.simulation import kernel, loop_program, loop_programs, simulate, simulate_batch  # noqa: E402
 
 DURATION = 1.0
 N_VARIANTS = 1000
@@ -294,6 +296,8 @@ def _batch(machine, loop: ServoLoop, profile: Profile, n_variants: int, repeat: 
                        times, "run_batch")
         stage(lambda: kernel.run_batch(programs, n_steps, record=["sensor.scale"], record_every=BATCH_RECORD_EVERY,
                                        on_divergence="flag", threads=1), times, "run_batch_one_thread")
+        # what a study calls for its simulations: programs, run_batch recording every step, the figures
+        stage(lambda: simulate_batch(loops, profile, DURATION), times, "simulate_batch")
     stages = ("model_variants", "servo_loops", "programs", "run_batch")
     totals = [sum(times[k][i] for k in stages) for i in range(repeat)]
     cpu_totals = [sum(times[k + "_cpu"][i] for k in stages) for i in range(repeat)]
@@ -327,6 +331,7 @@ def _batch(machine, loop: ServoLoop, profile: Profile, n_variants: int, repeat: 
         "run_batch_s": {"best": min(times["run_batch"]), "worst": max(times["run_batch"])},
         "run_batch_one_thread_s": {"best": min(times["run_batch_one_thread"]),
                                    "worst": max(times["run_batch_one_thread"])},
+        "simulate_batch_s": {"best": min(times["simulate_batch"]), "worst": max(times["simulate_batch"])},
         "run_batch_setup_s": min(times["run_batch_1_step"]),
         "per_variant_ms": 1e3 * min(times["run_batch"]) / n_variants,
         "diverged": int(result.diverged.sum()),
@@ -531,7 +536,8 @@ def report(r: dict[str, Any]) -> str:
         ("programs (loop_programs)", "programs"),
         ("run_batch, 1 step (lowering + discretisation)", "run_batch_1_step"),
         (f"run_batch, {b['n_steps']} steps", "run_batch"),
-        (f"[aside] run_batch, {b['n_steps']} steps, threads=1", "run_batch_one_thread"))]
+        (f"[aside] run_batch, {b['n_steps']} steps, threads=1", "run_batch_one_thread"),
+        ("[aside] simulate_batch (a study's call: programs, every step recorded, figures)", "simulate_batch"))]
     brow.append(["end to end (the first four stages and run_batch)", 1e3 * b["end_to_end_s"]["best"],
                  1e3 * b["end_to_end_s"]["worst"], 1e3 * b["end_to_end_cpu_s"]])
     lines.append(table(["batch stage", "best ms", "worst ms", "cpu ms"], brow,
