@@ -121,14 +121,15 @@ MAGNITUDES = (1e-100, 1e100)
 inside the normal doubles (2.2e-308 … 1.8e308). No machine-tool value comes near either end."""
 
 
-_NUMBER_THEN_UNIT = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s+([^\W\d_].*?|%|1/\S.*?)\s*"
-                               r"|\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)([^\W\d_].*?|%)\s*")
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+_NUMBER_THEN_UNIT = re.compile(rf"\s*({_NUMBER})(?:\s*([^\W\d_].*?|%)|\s+(1/\S.*?))\s*")
 """``"<number> <unit expression>"`` whose unit part starts with a letter (or is ``%``), or is a
 reciprocal ``1/...`` after a space (``"24.8 1/s"``, a gain): the number then multiplies the whole unit
 expression, so its value is ``number * (1 <unit> in SI)``, one pint conversion per distinct unit."""
 
 
-_PLAIN_NUMBER = re.compile(r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*")
+_PLAIN_NUMBER = re.compile(rf"\s*{_NUMBER}\s*")
 
 
 def _parse_string(text: str, unit: Unit) -> float:
@@ -138,10 +139,9 @@ def _parse_string(text: str, unit: Unit) -> float:
         raise _no_unit(text, unit)
     match = _NUMBER_THEN_UNIT.fullmatch(text)
     if match:
-        number, unit_text = (match.group(1), match.group(2)) if match.group(1) else (match.group(3), match.group(4))
-        factor = _unit_factor(unit_text, unit.si, unit.radians_optional)
+        factor = _unit_factor(match.group(2) or match.group(3), unit.si, unit.radians_optional)
         if factor is not None:
-            return float(number) * factor
+            return float(match.group(1)) * factor
     return _parse_with_pint(text, unit)
 
 

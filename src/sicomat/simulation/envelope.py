@@ -18,8 +18,8 @@ close fast eigenvalues (componentwise suprema by a piecewise Taylor series with 
 Modal coordinates matter: in raw coordinates a stiff spring's two ends would each look like a
 large force. The same holds for ``g'''`` and, for the fast blocks (invertible ``T_b``), for the
 block's part of ``g`` itself (``r S_b T_b⁻¹ e^{T_b t} ξ_b``, its amplitude). The kernel computes
-``|ξ|`` from ``ξ = Psi z`` (``Psi = Y [A_c B_c]``) at a segment's start, and on a sub-step of level ``l`` a link's event function
-lies within ``KU[l] @ |ξ| + τ(1 - τ) KP[l] @ |ξ|`` of its chord (each block contributing twice
+``|ξ|`` from ``ξ = Psi z`` (``Psi = Y [A_c B_c]``) at a segment's start, and on a sub-step of
+level ``l`` a link's event function lies within ``KU[l] @ |ξ| + τ(1 - τ) KP[l] @ |ξ|`` of its chord (each block contributing twice
 its amplitude or its interpolation remainder ``δ² sup|g_b''| / 2``, the smaller), and within
 ``s³/6 K3 @ |ξ|`` of its Taylor polynomial of degree 2 at the sub-step's start; a sub-step
 whose bounds stay on the safe side of the threshold holds no event.
@@ -540,8 +540,7 @@ def curvature_bounds(PE: np.ndarray, L: np.ndarray, G: np.ndarray, step: float,
     for v in range(n_parts):
         for c in range(nc):
             S, Y, bstart, bsize, bkind = _decompose_arrays(PE[v, c, :, :nx], step)
-            _configuration(PE[v, c], L[v, c], G[v], c, np.ascontiguousarray(S),
-                                      np.ascontiguousarray(Y), bstart, bsize, bkind, float(step),
-                                      int(levels), PsiT[v, c], KU[v, c], KP[v, c], K3[v, c],
-                                      D[v, c], pair[v, c])
+            _configuration(PE[v, c], L[v, c], G[v], c, np.ascontiguousarray(S), np.ascontiguousarray(Y),
+                           bstart, bsize, bkind, float(step), int(levels), PsiT[v, c], KU[v, c], KP[v, c],
+                           K3[v, c], D[v, c], pair[v, c])
     return tuple(np.ascontiguousarray(a) for a in (PsiT, KU, KP, K3, D, pair))

@@ -92,7 +92,7 @@ def step_figures_many(time: np.ndarray, responses: np.ndarray, amplitude: float,
     no settling time (still outside the band at its last sample); :func:`step_metrics`'s convention for
     ``amplitude == 0`` (a move that does not end): overshoot 0, no settling time (NaN)."""
     time = np.ascontiguousarray(time, dtype=float)
-    responses = np.ascontiguousarray(np.atleast_2d(np.asarray(responses, dtype=float)))
+    responses = np.ascontiguousarray(np.atleast_2d(responses), dtype=float)
     n_runs, n = responses.shape
     if amplitude == 0 or n == 0:
         return np.zeros(n_runs), np.full(n_runs, np.nan)
