@@ -195,6 +195,41 @@ def test_resuming_a_changed_study_is_refused(tmp_path, reference):
         reference["axes.X.mechanics.bodies.load.mass"])
 
 
+def test_resuming_after_the_catalogue_changed_is_refused(tmp_path, monkeypatch):
+    """A catalogue id in the base model takes its values from the catalogue: the chunks written before a
+    catalogue entry changed hold the old motor's rows, so --resume refuses (the study file and the model file
+    are unchanged); with the entry as it was, the resume goes on and reuses them."""
+    from distributed import Client
+
+    from sicomat.catalogue.resolve import use_folders
+    from sicomat.studies import Study
+
+    monkeypatch.delenv("SICOMAT_CATALOG", raising=False)
+    parts = tmp_path / "parts"
+    parts.mkdir()
+    motor = parts / "servo-motor-400v-6nm.toml"
+    entry = ('kind = "motor"\n[parameters]\nrotor_inertia = "{}"\ntorque_constant = "1.6 N*m/A"\n'
+             'torque_constant_basis = "rms"\n[provenance]\nsource = "typical"\nrange = "a test entry"\n')
+    motor.write_text(entry.format("70 kg*cm^2"))
+    (tmp_path / "ballscrew_catalog.toml").write_text((EXAMPLES / "ballscrew_catalog.toml").read_text())
+    study = tmp_path / "study.toml"
+    study.write_text('base = "ballscrew_catalog.toml"\nanalyses = ["modal"]\nchunk_size = 1\n[[parameters]]\n'
+                     'path = "axes.X.mechanics.parts.4.mass"\nvalues = ["250 kg", "300 kg"]\n')
+    use_folders([str(parts)])
+    try:
+        with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as client:
+            first = bounded(lambda: Study(study).run(client))
+            motor.write_text(entry.format("80 kg*cm^2"))
+            with pytest.raises(ModelError, match="the catalogue or the chunking changed"):
+                Study(study).run(client, resume=True)
+            motor.write_text(entry.format("70 kg*cm^2"))
+            again = bounded(lambda: Study(study).run(client, resume=True))
+    finally:
+        use_folders([])
+    assert again.info["chunks"] == {"total": 2, "computed": 0, "reused": 2}
+    pd.testing.assert_frame_equal(again.to_pandas(), first.to_pandas())
+
+
 def test_the_catalog_folders_of_the_command_line_reach_the_worker_processes(tmp_path, monkeypatch):
     """``sicomat --catalog DIR study``: the workers (other processes, without the client's state) build each
     variant with the folder's motor, as ``sicomat --catalog DIR modal`` does in one process."""

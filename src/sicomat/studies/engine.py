@@ -5,8 +5,8 @@ alone, never from the workers: the same study gives the same chunks on any clust
 Dask task (:func:`sicomat.studies.analyses.run_chunk`); the client writes each chunk's rows to
 ``OUT/chunks/chunk-NNNNNN.parquet`` atomically as soon as the task finishes, so an interrupted study keeps
 every finished chunk, and ``resume=True`` computes only the chunks whose file is missing. The manifest
-(``OUT/manifest.json``) holds the study's fingerprint (the study, the base model's text, the chunking and
-SICOMAT's version): chunks of another study are never mixed in. A worker that dies mid-task has its task
+(``OUT/manifest.json``) holds the study's fingerprint (the study, the base model's text, the catalogue's
+entries, the chunking and SICOMAT's version): chunks of another study are never mixed in. A worker that dies mid-task has its task
 recomputed by the scheduler on another worker; its rows are written once, when a result arrives.
 """
 
@@ -66,8 +66,22 @@ def fingerprint(plan: "StudyPlan", chunk: int) -> str:
     study = plan.spec.model_dump(mode="json", exclude={"pareto", "format", "name", "description"})
     payload = {"study": study, "base": json.dumps(plan.base_data, sort_keys=True,
                                                                               default=str),
-               "chunk_size": chunk, "variants": plan.variants, "version": __version__}
+               "catalogue": catalogue_digest(), "chunk_size": chunk, "variants": plan.variants,
+               "version": __version__}
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
+
+
+def catalogue_digest() -> str:
+    """A digest of the catalogue entries the variants are built from (shipped, ``SICOMAT_CATALOG``, the
+    ``--catalog`` folders, as the workers load them): a catalogue id in the base model or a catalogue list
+    takes its values there, so a resumed study whose catalogue changed would mix rows of two catalogues.
+    Every entry counts, used or not (a resume is refused rather than risked); where it was read does not."""
+    from ..catalogue.resolve import default_catalogue
+
+    entries = sorted((e.to_dict() for e in default_catalogue()), key=lambda e: (e["id"], e["kind"]))
+    for entry in entries:
+        entry.pop("source", None)
+    return hashlib.sha256(json.dumps(entries, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def make_folders(out: Path) -> Path:
@@ -98,7 +112,8 @@ def _prepare_out(out: Path, fp: str, resume: bool, plan: "StudyPlan", chunk: int
             old = None
     if resume and old is not None:
         if old.get("fingerprint") != fp:
-            raise ModelError("the study, its base model or the chunking changed since these chunks were written; "
+            raise ModelError("the study, its base model, the catalogue or the chunking changed since these chunks "
+                             "were written; "
                              "run without --resume (recomputes everything) or give another --out",
                              source=str(manifest))
         n_chunks = math.ceil(plan.variants / chunk)
