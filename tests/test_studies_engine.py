@@ -177,6 +177,51 @@ def test_an_interrupted_study_resumes_with_only_the_missing_chunks(tmp_path, ref
     pd.testing.assert_frame_equal(results.to_pandas(), reference)
 
 
+def test_a_killed_client_leaves_no_process_and_resumes(tmp_path, reference):
+    """SIGKILL the `sicomat study` process itself (client, scheduler and the local cluster's nanny in it) once a
+    chunk is written: its worker processes do not outlive it (they lose their scheduler and stop), the chunks on
+    disk are whole (a chunk is renamed into place complete; a temporary file the kill left is removed at the
+    resume), and --resume computes only the missing chunks, giving the uninterrupted study's table."""
+    import subprocess
+    import sys
+
+    import psutil
+
+    from sicomat.studies import Study
+
+    path = write(tmp_path, chunk=1)
+    chunks = tmp_path / "study.results" / "chunks"
+    proc = subprocess.Popen([sys.executable, "-c", "from sicomat.cli.main import main; main()", "study", str(path),
+                             "--workers", "1", "--no-figures"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + BOUND_S
+        while time.monotonic() < deadline and not any(chunks.glob("chunk-*.parquet")) and proc.poll() is None:
+            time.sleep(0.01)
+        children = psutil.Process(proc.pid).children(recursive=True)
+        proc.kill()
+    finally:
+        proc.wait(BOUND_S)
+    gone, alive = psutil.wait_procs(children, timeout=60)
+    for p in alive:      # not to leave them to the next tests; the assertion below fails
+        p.kill()
+    assert not alive, f"worker processes outlived the killed client: {[p.pid for p in alive]}"
+    (chunks / ".chunk-000047.parquet.abc123.parquet").write_bytes(b"PAR1 cut short by a kill")
+    written = len(list(chunks.glob("chunk-*.parquet")))
+    assert 1 <= written < 48, "the kill must land mid-study"
+    with inprocess_client() as client:
+        results = bounded(lambda: Study(path).run(client, resume=True))
+    assert results.info["chunks"] == {"total": 48, "computed": 48 - written, "reused": written}
+    assert not list(chunks.glob(".chunk-*"))
+    pd.testing.assert_frame_equal(results.to_pandas(), reference)
+
+
+def inprocess_client():
+    """An in-process client with one single-threaded worker (the tests that need no worker processes)."""
+    from distributed import Client
+
+    return Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0")
+
+
 def test_resuming_a_changed_study_is_refused(tmp_path, reference):
     from distributed import Client
 

@@ -103,6 +103,10 @@ def _prepare_out(out: Path, fp: str, resume: bool, plan: "StudyPlan", chunk: int
     """The output folder ready; the chunks already on disk that ``resume`` keeps."""
     chunks_dir = make_folders(out)
     manifest = out / MANIFEST
+    # what a killed client left half-written: atomic_write's temporary files (".NAME.XXXX.ext"), never read
+    for leftover in [*chunks_dir.glob(".chunk-*"), *out.glob(f".{MANIFEST}.*")]:
+        if leftover.is_file() and not leftover.is_symlink():
+            leftover.unlink()
     done: set[int] = set()
     old = None
     if manifest.is_file():
