@@ -257,6 +257,59 @@ range = ["60 1/s", "140 1/s", 5]
     assert (table["constraints_ok"].astype(bool) == expected).all()
 
 
+def test_constraint_bounds_with_units_and_on_inputs(tmp_path, client):
+    """A bound with its unit is converted to the column's (kHz to Hz, t to kg), and a constraint may read an input
+    (the varied mass) as well as a metric: the same expressions written on the table in its units. Without the
+    conversion every variant would pass both; before inputs were joined, none passed the second."""
+    from sicomat.studies import Study
+
+    path = write_study(tmp_path, """
+base = "paper_5m4s.toml"
+analyses = ["modal"]
+constraints = ["modal.f2_hz >= 0.375 kHz", "axes.X.mechanics.bodies.load.mass >= 0.175 t"]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["150 kg", "200 kg", "250 kg", "300 kg", "350 kg"]
+""")
+    table = Study(path).run(client).to_pandas()
+    expected = (table["modal.f2_hz"] >= 375.0) & (table["axes.X.mechanics.bodies.load.mass"] >= 175.0)
+    assert (table["modal.f2_hz"] < 375.0).any() and (table["axes.X.mechanics.bodies.load.mass"] < 175.0).any()
+    assert expected.any()
+    assert (table["constraints_ok"].astype(bool) == expected).all()
+
+
+@pytest.mark.parametrize("text, unit, bound", [
+    ("modal.f1_hz >= 100 rad/s", "Hz", 100 / (2 * math.pi)),       # an angular frequency: / 2 pi
+    ("modal.f1_hz >= 0.08 kHz", "Hz", 80.0),
+    ("margins.velocity.phase_margin_deg >= 0.5 rad", "°", 0.5 * 180 / math.pi),
+    ("margins.velocity.gain_margin_db >= 6 dB", "dB", 6.0),           # logarithmic: as written
+    ("simulate.overshoot_percent <= 5 %", "%", 5.0),                 # a percentage column: as written
+    ("modal.zeta1 >= 1 %", "1", 0.01),                               # a ratio: 1 % is 0.01
+    ("simulate.max_following_error <= 20 um", "m", 20e-6),
+    ("modal.moving_mass <= 300 g*m^2", "kg·m²", 0.3),
+    ("size.peak_torque <= 4 kN*cm", "N·m", 40.0),
+    ("modal.f1_hz >= 80", "Hz", 80.0),                               # a plain number: the column's unit
+])
+def test_a_bound_with_a_unit_is_converted_to_the_column_unit(text, unit, bound):
+    from sicomat.studies.spec import Constraint
+
+    converted = Constraint.parse(text).in_unit(unit)
+    assert converted.unit is None and converted.bound == pytest.approx(bound, rel=1e-14)
+
+
+@pytest.mark.parametrize("text, unit, words", [
+    ("margins.velocity.gain_margin_db >= 6 Hz", "dB", "in dB"),
+    ("modal.f1_hz >= 80 kg", "Hz", "dimension mass"),
+    ("tune.Kp >= 3 N*s/m", None, "no unit"),
+    ("modal.f1_hz >= 80 blorb", "Hz", "unknown unit"),
+])
+def test_a_bound_whose_unit_does_not_fit_is_refused(text, unit, words):
+    from sicomat.studies.spec import Constraint
+
+    with pytest.raises(ValueError, match=words):
+        Constraint.parse(text).in_unit(unit)
+
+
 BAD = [
     ("""[[parameters]]
 path = "axes.X.mechanics.bodies.lod.mass"
@@ -295,6 +348,18 @@ range = ["100 kg", "200 kg", 10000]
 [[parameters]]
 path = "axes.X.mechanics.bodies.primary.mass"
 range = ["90 kg", "95 kg", 10000]""", "parameters", "100000000 variants"),
+    ("""constraints = ["modal.f1_hz >= 80 kg"]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "constraints.0", "dimension mass"),
+    ("""constraints = ["modal.f1_hz >="]
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "constraints", "METRIC OPERATOR BOUND"),
+    ("""seed = -3
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "seed", "greater than or equal to 0"),
     ("""[[parameters]]
 path = "axes.X.mechanics.parts.0.id"
 catalogue = "motor"

@@ -27,7 +27,8 @@ __all__ = ["UNIT_SUFFIXES", "table_units", "unit_of", "column_label", "format_va
 
 UNIT_SUFFIXES: dict[str, str] = {
     "_m_s2": "m/s²", "_m_s": "m/s", "_hz": "Hz", "_deg": "°", "_rad": "rad", "_db": "dB", "_mm": "mm",
-    "_um": "µm", "_ms": "ms", "_m": "m", "_s": "s", "_kg": "kg", "_rpm": "rpm", "_pct": "%", "_a": "A",
+    "_um": "µm", "_ms": "ms", "_m": "m", "_s": "s", "_kg": "kg", "_rpm": "rpm", "_pct": "%", "_percent": "%",
+    "_a": "A",
     "_v": "V", "_w": "W",
 }
 """The unit a column's name ends with (``modal.f1_hz`` → Hz); the longest matching suffix wins."""

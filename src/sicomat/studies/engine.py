@@ -150,11 +150,12 @@ def chunk_frame(plan: "StudyPlan", first: int, rows: list[dict[str, Any]]) -> "p
     import numpy as np
     import pandas as pd
 
-    from .analyses import METRICS
+    from .analyses import METRICS, constraints_hold
 
     stop = first + len(rows)
     columns: dict[str, Any] = {"variant": np.arange(first, stop, dtype=np.int64)}
-    for path, values in plan.inputs(first, stop).items():
+    inputs = plan.inputs(first, stop)
+    for path, values in inputs.items():
         columns[path] = values if values.dtype != object else pd.array(list(values), dtype="string")
     kinds = {name: kind for analysis in plan.spec.analyses for name, kind in METRICS[analysis].items()}
     for name in plan.metrics:
@@ -163,7 +164,11 @@ def chunk_frame(plan: "StudyPlan", first: int, rows: list[dict[str, Any]]) -> "p
             columns[name] = pd.array(cells, dtype="boolean")
         else:
             columns[name] = np.array([np.nan if x is None else float(x) for x in cells], dtype=float)
-    columns["constraints_ok"] = pd.array([bool(row["constraints_ok"]) for row in rows], dtype="boolean")
+    # here, where a variant's inputs meet its metrics: a constraint may read either (the workers' rows hold only
+    # the metrics; a constraint on an input evaluated there never held)
+    columns["constraints_ok"] = pd.array(
+        [row["error"] is None and constraints_hold({**{p: v[i] for p, v in inputs.items()}, **row}, plan.constraints)
+         for i, row in enumerate(rows)], dtype="boolean")
     columns["error"] = pd.array([row["error"] for row in rows], dtype="string")
     return pd.DataFrame(columns)
 

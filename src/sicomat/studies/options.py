@@ -10,7 +10,7 @@ from ..errors import ModelError, SicomatError
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..description.machine import Machine
-    from .spec import Constraint, StudySpec
+    from .spec import StudySpec
 
 __all__ = ["StudyOptions", "analysis_options", "check_analyses"]
 
@@ -31,7 +31,6 @@ class StudyOptions:
     circle_model: str | None = None
     size_move: float | None = None
     inertia_ratio_limit: float = 10.0
-    constraints: tuple["Constraint", ...] = ()   # parsed once, on the client
 
 
 def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
@@ -78,7 +77,7 @@ def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
                         si("simulate", "max_velocity", s.max_velocity, UNITS["velocity"]),
                         si("simulate", "max_acceleration", s.max_acceleration, UNITS["acceleration"]),
                         duration, radius, feed, spec.circle.model, size_move,   # type: ignore[arg-type]
-                        spec.size.inertia_ratio_limit, tuple(spec.parsed_constraints()))
+                        spec.size.inertia_ratio_limit)
 
 
 def check_analyses(spec: "StudySpec", machine: "Machine", axis: str, source: str) -> None:

@@ -121,7 +121,7 @@ class StudyResults:
             cols = list(columns) if columns is not None else \
                 [c for c in SPREAD if c in self.table.columns and _varies(self.table[c])]
             thresholds = {}
-            for c in self.plan.spec.parsed_constraints():
+            for c in self.plan.constraints:
                 if c.metric in cols and isinstance(c.bound, float) and c.operator in (">=", "<=", ">", "<"):
                     thresholds[c.metric] = (c.operator, c.bound)
             return plots.histograms(self.table, cols, thresholds=thresholds)

@@ -13,7 +13,7 @@ import re
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from ..errors import ModelError
 
@@ -113,17 +113,20 @@ class ParameterSpec(_Strict):
         return self.distribution is not None
 
 
-_CONSTRAINT = re.compile(r"^\s*([A-Za-z_][\w.\-]*)\s*(>=|<=|==|>|<)\s*(.+?)\s*$")
+_CONSTRAINT = re.compile(r"^\s*([A-Za-z_][\w.\-]*)\s*(>=|<=|==|>|<)\s*(?![<>=])(.+?)\s*$")
+_NUMBER_UNIT = re.compile(r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\d\s.+\-].*)")
 
 
 class Constraint(_Strict):
-    """``METRIC OPERATOR BOUND``, the bound a number (in the metric's unit), ``true``/``false`` or another
+    """``METRIC OPERATOR BOUND``, the bound a number (in the metric's unit), a number with its unit (``80 Hz``,
+    ``10 um``: converted to the column's unit by the study's plan, :meth:`in_unit`), ``true``/``false`` or another
     metric (``size.peak_torque <= size.peak_torque.limit``)."""
 
     text: str
     metric: str
     operator: str
     bound: float | bool | str
+    unit: str | None = None     # the bound's unit as written; None once converted (or a plain number)
 
     @classmethod
     def parse(cls, text: str) -> "Constraint":
@@ -138,16 +141,43 @@ class Constraint(_Strict):
             if operator != "==":
                 raise ValueError("compare a true/false metric with ==")
         else:
+            unit = None
             try:
                 bound = float(raw)
             except ValueError:
-                if not re.fullmatch(r"[A-Za-z_][\w.\-]*", raw):
-                    raise ValueError(f"the bound {raw!r} is neither a number (in the metric's unit), true/false, "
-                                     "nor a metric name") from None
-                bound = raw
+                quantity = _NUMBER_UNIT.fullmatch(raw)
+                if quantity:
+                    bound, unit = float(quantity.group(1)), quantity.group(2).strip()
+                elif not re.fullmatch(r"[A-Za-z_][\w.\-]*", raw):
+                    raise ValueError(f"the bound {raw!r} is neither a number (in the metric's unit, or with its "
+                                     "unit: '80 Hz'), true/false, nor a metric name") from None
+                else:
+                    bound = raw
             if isinstance(bound, float) and not math.isfinite(bound):
                 raise ValueError("the bound must be finite")
+            return cls(text=text, metric=metric, operator=operator, bound=bound, unit=unit)
         return cls(text=text, metric=metric, operator=operator, bound=bound)
+
+    def in_unit(self, unit: str | None) -> "Constraint":
+        """This constraint with its bound converted to ``unit`` (the metric's column unit as the table labels
+        it: ``Hz``, ``°``, ``dB``, ``%``, an SI unit such as ``m``, ``N·m``, ``kg·m²``, ``1``; None when the
+        column has no unit); itself when the bound has no unit. A ValueError says why a unit does not fit."""
+        if self.unit is None:
+            return self
+        assert isinstance(self.bound, float)
+        if unit is None:
+            raise ValueError(f"{self.metric} has no unit to convert {self.unit!r} to: give the bound as a plain "
+                             "number")
+        if unit in ("dB", "%"):     # logarithmic or a percentage of the metric itself: written as such, or not
+            if self.unit.replace("percent", "%") != unit:
+                raise ValueError(f"{self.metric} is in {unit}: write the bound in {unit} (got {self.unit!r})")
+            return self.model_copy(update={"unit": None})
+        from ..description.units import Unit, parse_quantity
+
+        si = {"°": "degree", "1": ""}.get(unit, unit.replace("·", "*").replace("²", "**2"))
+        bound = parse_quantity(f"{self.bound!r} {self.unit}", Unit(si, f"{self.metric}'s unit ({unit})",
+                                                                    radians_optional=si == "1/s"))
+        return self.model_copy(update={"bound": bound, "unit": None})
 
     def metrics(self) -> list[str]:
         """The metrics the constraint reads."""
@@ -213,7 +243,7 @@ class StudySpec(_Strict):
     """A study file, validated (the base model's path resolved against the study file's folder)."""
 
     base: str
-    seed: int = 0
+    seed: int = Field(0, ge=0)       # numpy's seed sequences take no negative seed
     analyses: list[str]
     axis: str | None = None
     parameters: list[ParameterSpec]

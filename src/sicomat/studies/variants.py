@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import difflib
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -62,6 +63,18 @@ class StudyPlan:
     rotary: bool = False
     torque: bool = False
     options: Any = None
+    constraints: tuple[Any, ...] = ()   # the study's constraints, bounds in their columns' units
+
+    def column_unit(self, name: str) -> str | None:
+        """The unit of a column of the table (an SI unit for a name without a unit suffix, else the suffix's:
+        Hz, °, dB, %), None when it has none (a ratio, a gain in the model's units, true/false)."""
+        from ..plots.study_table import UNIT_SUFFIXES
+
+        units = self.units()
+        if name in units:
+            return units[name]
+        return next((UNIT_SUFFIXES[s] for s in sorted(UNIT_SUFFIXES, key=len, reverse=True)
+                     if name.lower().endswith(s)), None)
 
     def units(self) -> dict[str, str]:
         """The SI unit of each column whose name carries none (inputs and metrics), for the figures' labels."""
@@ -149,8 +162,19 @@ def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
     check_analyses(spec, machine, axis, source)
     options = analysis_options(spec, axis, source)
     _check_names(spec, metrics, [p.path for p in spec.parameters], source)
-    return StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics), **_axis_kind(machine, axis),
-                              "options": options})
+    plan = StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics), **_axis_kind(machine, axis)})
+    constraints = tuple(_in_units(plan, source))
+    return StudyPlan(**{**plan.__dict__, "constraints": constraints, "options": options})
+
+
+def _in_units(plan: StudyPlan, source: str) -> Iterator[Any]:
+    """The study's constraints with every bound written with a unit (``modal.f1_hz >= 80 Hz``) converted to
+    its column's unit, or a :class:`ModelError` naming the constraint."""
+    for k, constraint in enumerate(plan.spec.parsed_constraints()):
+        try:
+            yield constraint.in_unit(plan.column_unit(constraint.metric))
+        except ValueError as exc:
+            raise ModelError(str(exc), source=source, path=f"constraints.{k}", value=constraint.text) from None
 
 
 def _axis_kind(machine: "Machine", axis: str) -> dict[str, bool]:
