@@ -356,6 +356,9 @@ values = ["1 kg"]""", "constraints.0", "dimension mass"),
 [[parameters]]
 path = "axes.X.mechanics.bodies.load.mass"
 values = ["1 kg"]""", "constraints", "METRIC OPERATOR BOUND"),
+    ("""[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = [[1, 2]]""", "parameters.0.values.0:", "valid number"),    # not pydantic's "values.0.float"
     ("""seed = -3
 [[parameters]]
 path = "axes.X.mechanics.bodies.load.mass"

@@ -328,13 +328,17 @@ def load_study(path: str | Path) -> tuple[StudySpec, Path]:
     return spec, base
 
 
+_UNION_TAG = re.compile(r"float|int|str|bool|(?:list|dict|tuple|function-\w+)\[.*\]")
+
+
 def study_from_dict(data: dict[str, Any], source: str | None = None) -> StudySpec:
     """Validate a study's data; a :class:`ModelError` names the first wrong key."""
     try:
         return StudySpec.model_validate(data)
     except ValidationError as exc:
         error = exc.errors()[0]
-        loc = ".".join(str(part) for part in error["loc"])
+        # pydantic names the member of a union it tried ("values.0.float"): not a key of the file
+        loc = ".".join(str(part) for part in error["loc"] if not _UNION_TAG.fullmatch(str(part)))
         message = error["msg"].removeprefix("Value error, ")
         if error["type"] == "extra_forbidden":
             message = "unknown key" + _known_keys(error["loc"])
