@@ -529,6 +529,11 @@ def test_options_that_contradict_and_ctrl_c(tmp_path, monkeypatch):
     assert result.exit_code == 2 and "--workers" in result.output
     result = runner.invoke(app, ["study", str(path), "--workers", "0"])
     assert result.exit_code == 2 and "--workers" in result.output
+    for address in ("nonsense", "foo://x:1", "tcp://host:notaport"):   # refused by distributed's parser, not reached
+        result = runner.invoke(app, ["study", str(path), "--scheduler", address])
+        line = result.output.strip()
+        assert result.exit_code == 2 and "\n" not in line and "--scheduler" in line and address in line, result.output
+    assert not (tmp_path / "study.results" / "results.parquet").exists()
 
     def interrupted(self, *args, **kwargs):
         raise KeyboardInterrupt

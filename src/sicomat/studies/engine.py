@@ -291,6 +291,9 @@ class _client:
             except (OSError, TimeoutError) as exc:
                 raise ModelError(f"cannot reach the Dask scheduler ({exc})", path="scheduler",
                                  value=self.scheduler) from None
+            except ValueError as exc:      # distributed's address parsing: no port, an unknown scheme, ...
+                raise ModelError(f"not a Dask scheduler address ({exc}); expected tcp://HOST:PORT", path="scheduler",
+                                 value=self.scheduler) from None
             self.own.append(client)
             return client, self.scheduler, None
         cores = usable_cores()
