@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -297,6 +298,19 @@ class StudySpec(_Strict):
 
     def parsed_constraints(self) -> list[Constraint]:
         return [Constraint.parse(text) for text in self.constraints]
+
+
+def constraints_in_units(spec: StudySpec, unit_of: Callable[[str], str | None],
+                         source: str) -> tuple[Constraint, ...]:
+    """The study's constraints with every bound written with a unit (``modal.f1_hz >= 80 Hz``) converted to its
+    column's unit (``unit_of(column)``), or a :class:`ModelError` naming the constraint."""
+    out = []
+    for k, constraint in enumerate(spec.parsed_constraints()):
+        try:
+            out.append(constraint.in_unit(unit_of(constraint.metric)))
+        except ValueError as exc:
+            raise ModelError(str(exc), source=source, path=f"constraints.{k}", value=constraint.text) from None
+    return tuple(out)
 
 
 def load_study(path: str | Path) -> tuple[StudySpec, Path]:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -21,7 +20,7 @@ import numpy as np
 
 from ..errors import ModelError, SicomatError
 from ..io.modelfile import value_at
-from .spec import MAX_VARIANTS, ParameterSpec, StudySpec, split_quantity
+from .spec import MAX_VARIANTS, ParameterSpec, StudySpec, constraints_in_units, split_quantity
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..description.machine import Machine
@@ -163,18 +162,8 @@ def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
     options = analysis_options(spec, axis, source)
     _check_names(spec, metrics, [p.path for p in spec.parameters], source)
     plan = StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics), **_axis_kind(machine, axis)})
-    constraints = tuple(_in_units(plan, source))
+    constraints = constraints_in_units(spec, plan.column_unit, source)
     return StudyPlan(**{**plan.__dict__, "constraints": constraints, "options": options})
-
-
-def _in_units(plan: StudyPlan, source: str) -> Iterator[Any]:
-    """The study's constraints with every bound written with a unit (``modal.f1_hz >= 80 Hz``) converted to
-    its column's unit, or a :class:`ModelError` naming the constraint."""
-    for k, constraint in enumerate(plan.spec.parsed_constraints()):
-        try:
-            yield constraint.in_unit(plan.column_unit(constraint.metric))
-        except ValueError as exc:
-            raise ModelError(str(exc), source=source, path=f"constraints.{k}", value=constraint.text) from None
 
 
 def _axis_kind(machine: "Machine", axis: str) -> dict[str, bool]:
