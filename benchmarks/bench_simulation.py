@@ -11,7 +11,9 @@ friction with true stick–slip on the motor guide.
   numba cache load or compilation, is reported apart), setup included (lowering to flat arrays and the
   exact discretisation; ``run(program, 1)`` times it alone). Variants show the cost of recording (all
   20 slots and the states at every step; 3 slots; 3 slots every 8th step through ``run_batch``), of the
-  nonlinear elements (the same loop with ``nonlinear=False``) and of ``simulate()`` end to end.
+  nonlinear elements (the same loop with ``nonlinear=False``), of the Coulomb friction alone (the same
+  machine with its Coulomb and static friction set to 0: the stick–slip events and their in-step screening
+  are the difference to the 3-slot run) and of ``simulate()`` end to end.
 - **Peer**: python-control's ``input_output_response`` on an ``nlsys`` implementing the same loop in
   continuous time (the only way an ODE solver can take it): PI and P continuous, each loop's lags
   (zero-order hold, computation delay, differencing) as one first-order Padé delay, Coulomb friction
@@ -182,6 +184,19 @@ class ContinuousLoop:
         return control.input_output_response(
             self.system, times, U, X0=np.zeros(self.nx + 3), solve_ivp_method=method,
             solve_ivp_kwargs={"rtol": PEER_RTOL, "atol": PEER_ATOL})
+
+
+def _without_coulomb_friction(machine, loop: ServoLoop, profile: Profile):
+    """The benchmark's program (3 slots recorded) with the axis's Coulomb and static friction set to 0 (the
+    kernel then has no friction link): what the stick-slip events and their in-step screening cost is
+    ``run_few_slots`` minus this."""
+    mech = machine.axes[loop.axis].mechanics
+    settings = {f"axes.{loop.axis}.mechanics.frictions.{name}.{key}": "0 N"
+                for name, f in mech.frictions.items() for key in ("coulomb", "static")
+                if getattr(f, key, None) is not None}
+    free = build_servo_loop(with_overrides(machine, settings), loop.axis)
+    program, _ = loop_program(free, profile, DURATION)
+    return dataclasses.replace(program, record=tuple(program.slot_names.index(s) for s in FEW_SLOTS))
 
 
 def _voltage_limit_binds(loop: ServoLoop, profile: Profile) -> bool:
@@ -379,6 +394,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     few = dataclasses.replace(program, record=tuple(names.index(s) for s in FEW_SLOTS))
     linear, _ = loop_program(loop, profile, DURATION, nonlinear=False)
     linear_few = dataclasses.replace(linear, record=tuple(linear.slot_names.index(s) for s in FEW_SLOTS))
+    no_coulomb = _without_coulomb_friction(machine, loop, profile)
     Phi, Gamma, K = _bare_system(program)
     Phi_c, Gamma_c, K_c = _bare_system(program, closed_loop=False)
 
@@ -387,7 +403,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     kernel.bare_loop(Phi, Gamma, K, 10)
     first_bare = time.perf_counter() - t0
     kernel.bare_loop(Phi_c, Gamma_c, K_c, 10)
-    for warm in (lambda: kernel.run(few, 10), lambda: kernel.run(linear_few, 10),
+    for warm in (lambda: kernel.run(few, 10), lambda: kernel.run(linear_few, 10), lambda: kernel.run(no_coulomb, 10),
                  lambda: kernel.run_batch([program], 10, record=list(FEW_SLOTS), record_every=BATCH_RECORD_EVERY),
                  lambda: simulate(loop, profile, 0.01)):
         warm()
@@ -401,6 +417,7 @@ def run(quick: bool = False) -> dict[str, Any]:
         "run_batch_single_few_every8": lambda: kernel.run_batch([program], n_steps, record=list(FEW_SLOTS),
                                                                 record_every=BATCH_RECORD_EVERY),
         "run_linear_few_slots": lambda: kernel.run(linear_few, n_steps),
+        "run_no_coulomb_few_slots": lambda: kernel.run(no_coulomb, n_steps),
         "simulate_end_to_end": lambda: simulate(loop, profile, DURATION),
     }, repeat)
     res = ours["run"].value
@@ -492,6 +509,7 @@ def report(r: dict[str, Any]) -> str:
     label = {"run": f"kernel.run (all {c['slots']} slots + states recorded)", "run_few_slots": "kernel.run (3 slots recorded)",
              "run_batch_single_few_every8": "run_batch([program]) 3 slots, every 8th step",
              "run_linear_few_slots": "kernel.run, linear loop (nonlinear=False), 3 slots",
+             "run_no_coulomb_few_slots": "kernel.run, every effect but Coulomb friction, 3 slots",
              "simulate_end_to_end": "simulate() end to end (program build + run + series)",
              "run_one_step": "kernel.run, 1 step (lowering + discretisation: the setup in run)",
              "bare_loop": f"bare_loop ({r['bare']['states']} states = the closed loop's, trivial controller)",
@@ -500,7 +518,7 @@ def report(r: dict[str, Any]) -> str:
     bare = o["bare_loop"]["best_s"]
     peer_s = p["wall_s"]
     for key in ("run", "run_few_slots", "run_batch_single_few_every8", "run_linear_few_slots",
-                "simulate_end_to_end", "run_one_step", "bare_loop", "bare_loop_continuous"):
+                "run_no_coulomb_few_slots", "simulate_end_to_end", "run_one_step", "bare_loop", "bare_loop_continuous"):
         t = o[key]
         whole_run = key not in ("run_one_step", "bare_loop", "bare_loop_continuous")  # the peer's 1 s
         rows.append([label[key], 1e3 * t["best_s"], 1e3 * t["median_s"], 1e3 * t["worst_s"],
