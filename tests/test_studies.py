@@ -518,6 +518,12 @@ def test_outputs_follow_the_output_policy_before_any_work(tmp_path):
     result = runner.invoke(app, ["study", str(inside / "study.toml"), "--out", str(inside), "--workers", "1"])
     assert result.exit_code == 2 and "would replace the base model" in result.output
     assert (inside / "paper_5m4s.toml").read_text() == (EXAMPLES / "paper_5m4s.toml").read_text()
+    dangling = tmp_path / "dangling"
+    dangling.symlink_to(tmp_path / "nowhere")                            # a link to a folder that is not there
+    result = runner.invoke(app, ["study", str(path), "--out", str(dangling), "--workers", "1"])
+    line = result.output.strip()
+    assert result.exit_code == 2 and "\n" not in line and "nowhere" in line and "does not exist" in line, line
+    assert not (tmp_path / "nowhere").exists()
 
 
 def test_options_that_contradict_and_ctrl_c(tmp_path, monkeypatch):

@@ -89,6 +89,9 @@ def make_folders(out: Path) -> Path:
     something that is not a folder. Returns the chunks' folder."""
     if out.exists() and not out.is_dir():
         raise OutputError(f"{out}: not a folder; --out names the folder that receives the study's table")
+    if out.is_symlink() and not out.exists():
+        raise OutputError(f"{out}: a symbolic link to {os.readlink(out)}, which does not exist; create that folder "
+                          "or give --out another one")
     chunks_dir = out / "chunks"
     try:
         chunks_dir.mkdir(parents=True, exist_ok=True)
