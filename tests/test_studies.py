@@ -496,6 +496,35 @@ def test_the_pareto_front_and_the_figures_of_a_study(tmp_path, client):
     assert [v["variant"] for v in summary["pareto"]["variants"]] == list(front["variant"])
 
 
+def test_the_dry_run_shows_the_plan_and_computes_nothing(tmp_path):
+    """``--dry-run``: the variant count and chunks, each parameter's levels, the metrics, the constraints as the
+    study will judge them (a bound with a unit converted to its column's) and variant 0's --set options; no
+    worker started, nothing written."""
+    import json
+
+    from sicomat.cli.main import app
+
+    path = write_study(tmp_path, SMALL.replace('constraints = ["margins.velocity.phase_margin_deg >= 30"]',
+                                               'constraints = ["margins.velocity.phase_margin_deg >= 0.5 rad", '
+                                               '"margins.stable == true"]'))
+    result = runner.invoke(app, ["study", str(path), "--dry-run", "--json"])
+    assert result.exit_code == 0, result.output
+    plan = json.loads(result.stdout)
+    assert (plan["variants"], plan["grid"], plan["samples"]) == (12, [6, 2], 1)
+    assert plan["chunks"] == -(-12 // plan["chunk_size"])
+    assert [(q["path"], q["way"], q["levels"]) for q in plan["parameters"]] == [
+        ("axes.X.mechanics.bodies.load.mass", "range", 6), ("axes.X.mechanics.couplings.load.stiffness", "values", 2)]
+    assert "margins.velocity.phase_margin_deg" in plan["metrics"] and "margins.stable" in plan["metrics"]
+    first, second = plan["constraints"]
+    assert first["bound"] == pytest.approx(0.5 * 180 / math.pi, rel=1e-14) and first["unit"] == "°"
+    assert (second["bound"], second["unit"]) == (True, None)
+    assert plan["first_variant"] == ['axes.X.mechanics.bodies.load.mass="150.0 kg"',
+                                     'axes.X.mechanics.couplings.load.stiffness="2e8 N/m"']
+    text = runner.invoke(app, ["study", str(path), "--dry-run"])
+    assert text.exit_code == 0 and "12 variants" in text.output and "28.6479 °" in text.output
+    assert not (tmp_path / "study.results").exists()
+
+
 def test_outputs_follow_the_output_policy_before_any_work(tmp_path):
     """``--out`` a file, a results name taken by a folder, an output that is the base model: one line, exit 2,
     and no chunk computed."""

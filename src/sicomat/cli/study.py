@@ -82,6 +82,10 @@ def _dry_run(plan: Any, json_: bool) -> None:
                "parameters": [{"path": q.path, "way": p.spec.parameters[q.index].way, "levels": len(q.settings),
                                "first": str(q.settings[0]), "last": str(q.settings[-1])} for q in p.parameters],
                "metrics": list(p.metrics), "units": {m: UNITS[m] for m in p.metrics if m in UNITS},
+               # as the study judges them: a bound written with a unit converted to its column's
+               "constraints": [{"text": c.text, "metric": c.metric, "operator": c.operator, "bound": c.bound,
+                                "unit": p.column_unit(c.metric) if isinstance(c.bound, float) else None}
+                               for c in p.constraints],
                "first_variant": p.settings(0)}
     if json_:
         emit_json(payload)
@@ -95,6 +99,11 @@ def _dry_run(plan: Any, json_: bool) -> None:
     for q in payload["parameters"]:
         console.print(f"  {q['path']}: {q['way']}, {q['levels']} values, {q['first']} ... {q['last']}", markup=False)
     console.print("metrics: " + ", ".join(p.metrics), markup=False)
+    for c in payload["constraints"]:
+        bound = f"{c['bound']:.6g}" if isinstance(c["bound"], float) else str(c["bound"]).lower()
+        unit = f" {c['unit']}" if c["unit"] not in (None, "1") else ""
+        console.print(f"constraint: {c['metric']} {c['operator']} {bound}{unit}"
+                      f"   (written {c['text']!r})", markup=False)
     console.print("variant 0: --set " + " --set ".join(payload["first_variant"]), markup=False)
 
 
