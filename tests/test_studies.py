@@ -310,6 +310,30 @@ def test_a_bound_whose_unit_does_not_fit_is_refused(text, unit, words):
         Constraint.parse(text).in_unit(unit)
 
 
+def test_a_batch_too_large_for_the_memory_limit_runs_its_variants_one_by_one(tmp_path, client, monkeypatch):
+    """A chunk's simulations run as one batch; when that batch is refused (here the memory limit: one variant's
+    records fit, four do not) the chunk runs them one by one instead of failing the study, with the same
+    numbers (a variant's results do not depend on its batch). Before, the ResourceError failed the study."""
+    from sicomat.studies import Study
+
+    text = """
+base = "paper_5m4s.toml"
+analyses = ["simulate"]
+chunk_size = 4
+[simulate]
+duration = "0.5 s"
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["200 kg", "230 kg", "260 kg", "290 kg"]
+"""
+    reference = Study(write_study(tmp_path, text, "free.toml")).run(client).to_pandas()
+    # 4000 steps x 4 values x 8 bytes, twice: 256 kB a variant (+ the setpoint table), 1 MB for the four
+    monkeypatch.setenv("SICOMAT_MAX_MEMORY", "600 kB")
+    limited = Study(write_study(tmp_path, text, "limited.toml")).run(client).to_pandas()
+    assert limited["error"].isna().all()
+    pd.testing.assert_frame_equal(limited, reference)
+
+
 BAD = [
     ("""[[parameters]]
 path = "axes.X.mechanics.bodies.lod.mass"
@@ -359,6 +383,19 @@ values = ["1 kg"]""", "constraints", "METRIC OPERATOR BOUND"),
     ("""[[parameters]]
 path = "axes.X.mechanics.bodies.load.mass"
 values = [[1, 2]]""", "parameters.0.values.0:", "valid number"),    # not pydantic's "values.0.float"
+    ("""analyses = ["simulate"]
+[simulate]
+move = "10 mm"
+max_velocity = "0 m/s"
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "simulate.max_velocity", "> 0"),                     # sicomat simulate refuses it too
+    ("""analyses = ["simulate"]
+[simulate]
+duration = "1e9 s"
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "simulate.duration", "SICOMAT_MAX_MEMORY"),          # before any work, not in a worker
     ("""seed = -3
 [[parameters]]
 path = "axes.X.mechanics.bodies.load.mass"
@@ -377,7 +414,8 @@ def test_bad_study_files_are_refused_before_any_work(tmp_path, body, key, words)
 
     if "parts.0.id" in body:   # a catalogue list: the 5M4S has no parts; refused for the filter or the path
         key, words = "parameters.0", ""
-    path = write_study(tmp_path, 'base = "paper_5m4s.toml"\nanalyses = ["modal"]\n' + body)
+    analyses = "" if body.startswith("analyses") else 'analyses = ["modal"]\n'    # a body may give its own
+    path = write_study(tmp_path, 'base = "paper_5m4s.toml"\n' + analyses + body)
     result = runner.invoke(app, ["study", str(path), "--json"])
     assert result.exit_code == 2, result.output
     line = result.output.strip()

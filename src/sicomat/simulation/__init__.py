@@ -58,7 +58,7 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dura
     n_pos = -(-n_steps // Np)
     per_step = recorded if recorded is not None else _values_per_step(first, profile, nonlinear)
     delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in loops)
-    _require_memory(n_steps, per_step, n_pos, delayed)
+    require_simulation_memory(n_steps, per_step, n_pos, delayed)
     t_pos = np.arange(n_pos) * Np * h
     table = SetpointTable(*profile.evaluate(t_pos))
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
@@ -117,7 +117,7 @@ def _values_per_step(loop: "ServoLoop", profile: "SetpointProfile", nonlinear: b
     return len(program.record) + program.continuous.A.shape[0] + 2 * program.continuous.G.shape[0]
 
 
-def _require_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -> None:
+def require_simulation_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -> None:
     """Refuse a run whose arrays cannot fit: the kernel's records (``per_step`` values of 8 bytes per
     step), as much again for the named and derived signals and the metrics computed from them, the
     setpoint table (time, position, velocity, acceleration and the kernel's 3 columns) and the ring

@@ -275,7 +275,8 @@ def _simulate(variants: list[_Variant], opts: StudyOptions) -> None:
     for members in groups.values():
         try:
             _simulate_group(members)
-        except ModelError:   # structures differ (friction links, filters, delays): one call each
+        except Exception:  # noqa: BLE001 - structures differ (friction links, filters, delays), or one variant
+            # fails (a memory limit, a model error): one call each, each failure a row with its message
             for member in members:
                 _attempt(member[0], "simulate", partial(_simulate_group, [member]))
 

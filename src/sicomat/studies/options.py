@@ -73,24 +73,44 @@ def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
         if not (value is not None and value > 0):
             raise ModelError(f"expected a {key} > 0", source=source, path=f"circle.{key}", value=value)
     size_move = si("size", "move", spec.size.move, UNITS["length"])
-    return StudyOptions(tuple(spec.analyses), axis, tune, move,
-                        si("simulate", "max_velocity", s.max_velocity, UNITS["velocity"]),
-                        si("simulate", "max_acceleration", s.max_acceleration, UNITS["acceleration"]),
+    max_velocity = si("simulate", "max_velocity", s.max_velocity, UNITS["velocity"])
+    max_acceleration = si("simulate", "max_acceleration", s.max_acceleration, UNITS["acceleration"])
+    # as sicomat simulate's options: limits > 0 (a zero limit would fall back to the trajectory's), a move not 0
+    for key, value in (("max_velocity", max_velocity), ("max_acceleration", max_acceleration)):
+        if value is not None and not value > 0:
+            raise ModelError(f"expected a {key} > 0", source=source, path=f"simulate.{key}",
+                             value=getattr(s, key))
+    for table, value, given in (("simulate", move, s.move), ("size", size_move, spec.size.move)):
+        if value == 0:
+            raise ModelError("expected a move of non-zero length", source=source, path=f"{table}.move", value=given)
+    return StudyOptions(tuple(spec.analyses), axis, tune, move, max_velocity, max_acceleration,
                         duration, radius, feed, spec.circle.model, size_move,   # type: ignore[arg-type]
                         spec.size.inertia_ratio_limit)
 
 
-def check_analyses(spec: "StudySpec", machine: "Machine", axis: str, source: str) -> None:
-    """Refuse, before any work, analyses the base model cannot run (no controller, no move, one axis)."""
+def check_analyses(spec: "StudySpec", machine: "Machine", axis: str, source: str,
+                   options: "StudyOptions | None" = None) -> None:
+    """Refuse, before any work, analyses the base model cannot run (no controller, no move, one axis), and a
+    simulated duration whose records would not fit in memory for one variant (as ``sicomat simulate``)."""
     needs_loop = [a for a in spec.analyses if a in ("tune", "margins", "simulate", "size")]
     if needs_loop:
         from ..servo.loop import build_servo_loop
 
         try:
-            build_servo_loop(machine, axis)
+            loop = build_servo_loop(machine, axis)
         except SicomatError as exc:
             raise ModelError(f"{', '.join(needs_loop)} need the axis's servo loop, which the base model cannot "
                              f"build: {exc}", source=source, path="analyses") from None
+        if "simulate" in spec.analyses and options is not None and options.duration is not None:
+            from ..simulation import require_simulation_memory, run_steps
+
+            try:   # simulate_batch keeps 4 values a step and variant
+                n_steps = run_steps([loop], options.duration)
+                require_simulation_memory(n_steps, 4, -(-n_steps // loop.position_ratio))
+            except SicomatError as exc:   # a ModelError's own path and value are run_steps': the study's key instead
+                message = exc.message if isinstance(exc, ModelError) else str(exc)
+                raise ModelError(message, source=source, path="simulate.duration", value=spec.simulate.duration) \
+                    from None
     if "simulate" in spec.analyses and spec.simulate.move is None and machine.axes[axis].trajectory is None:
         raise ModelError(f"simulate needs a move: give [simulate] move or an [axes.{axis}.trajectory] in the base "
                          "model", source=source, path="simulate.move")

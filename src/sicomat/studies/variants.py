@@ -158,8 +158,8 @@ def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
     from .options import analysis_options, check_analyses
 
     metrics = metric_names(spec.analyses, machine, axis)
-    check_analyses(spec, machine, axis, source)
     options = analysis_options(spec, axis, source)
+    check_analyses(spec, machine, axis, source, options)
     _check_names(spec, metrics, [p.path for p in spec.parameters], source)
     plan = StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics), **_axis_kind(machine, axis)})
     constraints = constraints_in_units(spec, plan.column_unit, source)
