@@ -396,6 +396,16 @@ duration = "1e9 s"
 [[parameters]]
 path = "axes.X.mechanics.bodies.load.mass"
 values = ["1 kg"]""", "simulate.duration", "SICOMAT_MAX_MEMORY"),          # before any work, not in a worker
+    ("""[tune]
+velocity_crossover = "-5 Hz"
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "tune.velocity_crossover", "> 0"),               # was a failed row per variant
+    ("""[tune]
+min_gain_margin = -5
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "tune.min_gain_margin", "> 0"),                  # was accepted
     ("""seed = -3
 [[parameters]]
 path = "axes.X.mechanics.bodies.load.mass"

@@ -58,6 +58,9 @@ def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
     if tune["position_phase_margin"] is not None and tune["position_crossover"] is not None:
         raise ModelError("give either position_phase_margin or position_crossover", source=source,
                          path="tune.position_crossover")
+    for key in ("velocity_crossover", "position_crossover", "min_gain_margin"):   # as sicomat tune's options
+        if tune[key] is not None and not tune[key] > 0:   # type: ignore[operator]
+            raise ModelError(f"expected a {key} > 0", source=source, path=f"tune.{key}", value=getattr(t, key))
     for key in ("velocity_phase_margin", "position_phase_margin"):
         if tune[key] is not None and not 0 < tune[key] < 180:   # type: ignore[operator]
             raise ModelError("expected a phase margin between 0 and 180 degrees", source=source,
