@@ -406,6 +406,11 @@ min_gain_margin = -5
 [[parameters]]
 path = "axes.X.mechanics.bodies.load.mass"
 values = ["1 kg"]""", "tune.min_gain_margin", "> 0"),                  # was accepted
+    ("""[size]
+inertia_ratio_limit = -1
+[[parameters]]
+path = "axes.X.mechanics.bodies.load.mass"
+values = ["1 kg"]""", "size.inertia_ratio_limit", "greater than 0"),   # was a failed row per variant
     ("""seed = -3
 [[parameters]]
 path = "axes.X.mechanics.bodies.load.mass"
