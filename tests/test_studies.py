@@ -549,6 +549,29 @@ def test_the_pareto_front_and_the_figures_of_a_study(tmp_path, client):
     assert [v["variant"] for v in summary["pareto"]["variants"]] == list(front["variant"])
 
 
+@pytest.mark.parametrize("lines, key", [
+    ('constraints = ["axes.X.mechanics.parts.2.id >= 3"]', "constraints.0"),
+    ('[pareto]\nmaximize = ["modal.f1_hz", "axes.X.mechanics.parts.2.id"]', "pareto.maximize.1"),
+    ('[pareto]\nminimize = ["modal.f1_hz", "axes.X.mechanics.parts.2.mounting"]', "pareto.minimize.1"),
+])
+def test_constraints_and_objectives_on_words_are_refused_before_any_work(tmp_path, lines, key):
+    """Catalogue ids and words have no order: a constraint or a Pareto objective on them is one line, exit status
+    2, nothing computed (before, the objective failed with a traceback once the whole study had run)."""
+    from sicomat.cli.main import app
+
+    (tmp_path / "ballscrew_catalog.toml").write_text((EXAMPLES / "ballscrew_catalog.toml").read_text())
+    study = tmp_path / "study.toml"
+    table = lines if lines.startswith("[") else ""
+    study.write_text('base = "ballscrew_catalog.toml"\nanalyses = ["modal"]\n' + ("" if table else lines + "\n")
+                     + '[[parameters]]\npath = "axes.X.mechanics.parts.2.id"\ncatalogue = "ball-screw"\n'
+                     'where = ["diameter == 32 mm"]\n[[parameters]]\npath = "axes.X.mechanics.parts.2.mounting"\n'
+                     'values = ["fixed-supported", "fixed-fixed"]\n' + table + "\n")
+    result = runner.invoke(app, ["study", str(study), "--workers", "1"])
+    line = result.output.strip()
+    assert result.exit_code == 2 and "\n" not in line and key in line and "not numbers" in line, result.output
+    assert not (tmp_path / "study.results").exists()
+
+
 def test_the_dry_run_shows_the_plan_and_computes_nothing(tmp_path):
     """``--dry-run``: the variant count and chunks, each parameter's levels, the metrics, the constraints as the
     study will judge them (a bound with a unit converted to its column's) and variant 0's --set options; no

@@ -216,7 +216,7 @@ class SizeOptions(_Strict):
     """``[size]``: the sizing check's move (default the axis's trajectory) and inertia-ratio limit."""
 
     move: float | str | None = None
-    inertia_ratio_limit: float = Field(10.0, gt=0, allow_inf_nan=False)   # as sicomat size --inertia-ratio-limit
+    inertia_ratio_limit: float = Field(default=10.0, gt=0, allow_inf_nan=False)   # as sicomat size --inertia-ratio-limit
 
 
 class ParetoSpec(_Strict):
@@ -244,7 +244,7 @@ class StudySpec(_Strict):
     """A study file, validated (the base model's path resolved against the study file's folder)."""
 
     base: str
-    seed: int = Field(0, ge=0)       # numpy's seed sequences take no negative seed
+    seed: int = Field(default=0, ge=0)       # numpy's seed sequences take no negative seed
     analyses: list[str]
     axis: str | None = None
     parameters: list[ParameterSpec]

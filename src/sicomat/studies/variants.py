@@ -160,7 +160,7 @@ def plan_study(spec: StudySpec, base: Path, source: str) -> StudyPlan:
     metrics = metric_names(spec.analyses, machine, axis)
     options = analysis_options(spec, axis, source)
     check_analyses(spec, machine, axis, source, options)
-    _check_names(spec, metrics, [p.path for p in spec.parameters], source)
+    _check_names(spec, metrics, plan.parameters, source)
     plan = StudyPlan(**{**plan.__dict__, "metrics": tuple(metrics), **_axis_kind(machine, axis)})
     constraints = constraints_in_units(spec, plan.column_unit, source)
     return StudyPlan(**{**plan.__dict__, "constraints": constraints, "options": options})
@@ -180,19 +180,21 @@ def _axis_kind(machine: "Machine", axis: str) -> dict[str, bool]:
             "torque": loop.mechanics.actuator(loop.actuator).kind != "translational"}
 
 
-def _check_names(spec: StudySpec, metrics: list[str], inputs: list[str], source: str) -> None:
-    known = [*inputs, *metrics]
-    for k, constraint in enumerate(spec.parsed_constraints()):
-        for name in constraint.metrics():
-            if name not in known:
-                raise ModelError(_unknown(name, known, spec.analyses), source=source, path=f"constraints.{k}",
-                                 value=constraint.text)
+def _check_names(spec: StudySpec, metrics: list[str], params: tuple[Parameter, ...], source: str) -> None:
+    """Constraints and objectives name columns of the table, and numeric ones: an input of catalogue ids or
+    words (``"fixed-supported"``) has no order (a study that compared one failed once its table was made)."""
+    inputs = [p.path for p in params]
+    known, words = [*inputs, *metrics], {p.path for p in params if p.inputs.dtype == object}
+    names = [(f"constraints.{k}", c.text, name) for k, c in enumerate(spec.parsed_constraints()) for name in c.metrics()]
     if spec.pareto is not None:
-        for which in ("maximize", "minimize"):
-            for k, name in enumerate(getattr(spec.pareto, which)):
-                if name not in known:
-                    raise ModelError(_unknown(name, known, spec.analyses), source=source,
-                                     path=f"pareto.{which}.{k}", value=name)
+        names += [(f"pareto.{which}.{k}", name, name) for which in ("maximize", "minimize")
+                  for k, name in enumerate(getattr(spec.pareto, which))]
+    for path, value, name in names:
+        if name not in known:
+            raise ModelError(_unknown(name, known, spec.analyses), source=source, path=path, value=value)
+        if name in words:
+            raise ModelError(f"{name} holds words or catalogue ids, not numbers: constraints and objectives read "
+                             "numbers (or true/false)", source=source, path=path, value=value)
 
 
 def _unknown(name: str, known: list[str], analyses: list[str]) -> str:
