@@ -572,6 +572,26 @@ def test_constraints_and_objectives_on_words_are_refused_before_any_work(tmp_pat
     assert not (tmp_path / "study.results").exists()
 
 
+def test_a_study_from_a_dict_equals_the_same_study_from_its_file(tmp_path, client):
+    """``Study.from_dict``: the study file's data without the file, ``base`` relative to ``folder``; the same plan
+    and table as the file gives; a refusal names ``<study data>`` and the key, as for a file."""
+    import tomllib
+
+    from sicomat.studies import Study
+
+    path = write_study(tmp_path, SMALL)
+    data = tomllib.loads(SMALL)
+    from_file = Study(path)
+    from_dict = Study.from_dict(data, folder=tmp_path, out=tmp_path / "from-dict")
+    assert from_dict.variants == from_file.variants == 12
+    assert [from_dict.settings(v) for v in range(12)] == [from_file.settings(v) for v in range(12)]
+    assert Study.from_dict(data, folder=tmp_path).out == tmp_path / "study.results"
+    pd.testing.assert_frame_equal(from_dict.run(client).to_pandas(), from_file.run(client).to_pandas())
+    with pytest.raises(ModelError, match=r"<study data>.*parameters\.0\.range"):
+        Study.from_dict({**data, "parameters": [{"path": "axes.X.mechanics.bodies.load.mass",
+                                                 "range": ["1 kg", "2 kg", 0]}]}, folder=tmp_path)
+
+
 def test_the_dry_run_shows_the_plan_and_computes_nothing(tmp_path):
     """``--dry-run``: the variant count and chunks, each parameter's levels, the metrics, the constraints as the
     study will judge them (a bound with a unit converted to its column's) and variant 0's --set options; no

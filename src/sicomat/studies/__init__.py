@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from .results import StudyResults
@@ -51,10 +52,31 @@ class Study:
     def __init__(self, path: str | Path, out: str | Path | None = None) -> None:
         from .variants import plan_study
 
-        self.path = Path(path)
+        self.path: Path | None = Path(path)
         spec, base = load_study(self.path)
         self.plan: "StudyPlan" = plan_study(spec, base, str(self.path))
         self.out = Path(out) if out is not None else default_out(self.path)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, folder: str | Path = ".", out: str | Path | None = None) -> "Study":
+        """A study from the data of a study file (a mapping with the same keys, as ``tomllib`` would read it),
+        without writing the file: ``base`` is relative to ``folder``; the results go to ``out`` (default
+        ``<folder>/<name, else "study">.results``). Checked as a file is; a refusal names ``<study data>``.
+
+        >>> Study.from_dict({"base": "paper_5m4s.toml", "analyses": ["modal"], "parameters": [
+        ...     {"path": "axes.X.mechanics.bodies.load.mass", "values": ["200 kg", "300 kg"]}]},
+        ...     folder="examples").variants
+        2
+        """
+        from .variants import plan_study
+
+        source = "<study data>"
+        spec = study_from_dict(dict(data), source)
+        study = cls.__new__(cls)
+        study.path = None
+        study.plan = plan_study(spec, Path(folder) / spec.base, source)
+        study.out = Path(out) if out is not None else Path(folder) / f"{spec.name or 'study'}.results"
+        return study
 
     @property
     def variants(self) -> int:
@@ -115,7 +137,7 @@ class Study:
         from .results import FIGURES
 
         make_folders(self.out)
-        inputs = {"the study file": self.path, "the base model": self.plan.base_path}
+        inputs: dict[str, Path | None] = {"the study file": self.path, "the base model": self.plan.base_path}
         check_output(table, "parquet" if table.suffix == ".parquet" else "csv", inputs=inputs)
         check_output(self.out / "manifest.json", "json", inputs=inputs)
         for kind in FIGURES if figures else ():
