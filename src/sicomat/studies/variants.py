@@ -199,9 +199,8 @@ def _check_names(spec: StudySpec, metrics: list[str], params: tuple[Parameter, .
 
 def _unknown(name: str, known: list[str], analyses: list[str]) -> str:
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
-    hint = f"; closest: {', '.join(close)}" if close else ""
-    return (f"unknown metric {name!r} for the analyses {', '.join(analyses)}{hint} "
-            f"(every name: `sicomat study --metrics`, docs/studies.md)")
+    hint = f"; closest: {', '.join(close)}" if close else f"; the columns are {', '.join(known)}"
+    return f"unknown metric {name!r} for the analyses {', '.join(analyses)}{hint} (docs/studies.md, The table)"
 
 
 def _parameter(k: int, p: ParameterSpec, seed: int, base_data: dict[str, Any], dumped: dict[str, Any],
