@@ -6,8 +6,9 @@ Dask task (:func:`sicomat.studies.analyses.run_chunk`); the client writes each c
 ``OUT/chunks/chunk-NNNNNN.parquet`` atomically as soon as the task finishes, so an interrupted study keeps
 every finished chunk, and ``resume=True`` computes only the chunks whose file is missing. The manifest
 (``OUT/manifest.json``) holds the study's fingerprint (the study, the base model's text, the catalogue's
-entries, the chunking and SICOMAT's version): chunks of another study are never mixed in. A worker that dies mid-task has its task
-recomputed by the scheduler on another worker; its rows are written once, when a result arrives.
+entries, the chunking and SICOMAT's version): chunks of another study are never mixed in. A worker that dies
+mid-task has its task recomputed by the scheduler on another worker; its rows are written once, when a result
+arrives.
 """
 
 from __future__ import annotations

@@ -216,7 +216,7 @@ class SizeOptions(_Strict):
     """``[size]``: the sizing check's move (default the axis's trajectory) and inertia-ratio limit."""
 
     move: float | str | None = None
-    inertia_ratio_limit: float = Field(default=10.0, gt=0, allow_inf_nan=False)   # as sicomat size --inertia-ratio-limit
+    inertia_ratio_limit: float = Field(default=10.0, gt=0, allow_inf_nan=False)   # as sicomat size's option
 
 
 class ParetoSpec(_Strict):

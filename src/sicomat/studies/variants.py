@@ -185,7 +185,8 @@ def _check_names(spec: StudySpec, metrics: list[str], params: tuple[Parameter, .
     words (``"fixed-supported"``) has no order (a study that compared one failed once its table was made)."""
     inputs = [p.path for p in params]
     known, words = [*inputs, *metrics], {p.path for p in params if p.inputs.dtype == object}
-    names = [(f"constraints.{k}", c.text, name) for k, c in enumerate(spec.parsed_constraints()) for name in c.metrics()]
+    names = [(f"constraints.{k}", c.text, name)
+             for k, c in enumerate(spec.parsed_constraints()) for name in c.metrics()]
     if spec.pareto is not None:
         names += [(f"pareto.{which}.{k}", name, name) for which in ("maximize", "minimize")
                   for k, name in enumerate(getattr(spec.pareto, which))]
