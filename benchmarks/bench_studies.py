@@ -127,6 +127,7 @@ def one_variant(base: Path, settings: list[str], stages: dict[str, float] | None
                          simulate, stability_margins, tune_frequency)
     from sicomat.robotics.lowering import axis_mechanics
     from sicomat.tasks.simulate import choose_profile
+    from sicomat.simulation.checks import limit_cycle_warning
 
     two_pi = 2 * math.pi
     row: dict[str, Any] = {}
@@ -176,12 +177,15 @@ def one_variant(base: Path, settings: list[str], stages: dict[str, float] | None
     row["margins.stable"] = loop_verdict(tuned_loop, an=an).stable
     lap("margins")
     profile, _ = choose_profile(machine.axes[AXIS].trajectory, None, None, None, None)
-    metrics = simulate(tuned_loop, profile, DURATION).metrics
+    series = simulate(tuned_loop, profile, DURATION)
+    metrics = series.metrics
     if metrics is None:   # simulate gives the following-error figures of every move on the axis
         raise RuntimeError("simulate() gave no following-error figures")
     row.update({"simulate.max_following_error": metrics.max_following_error,
                 "simulate.rms_following_error": metrics.rms_following_error,
-                "simulate.final_error": metrics.final_error})
+                "simulate.final_error": metrics.final_error,
+                # sicomat simulate's verdict, as the study's simulate.stable: the poles (margins') and the run
+                "simulate.stable": bool(row["margins.stable"]) and limit_cycle_warning(series) is None})
     lap("simulate")
     return row
 

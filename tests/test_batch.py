@@ -121,6 +121,23 @@ def test_batch_metrics_are_simulates_variant_by_variant(case):
     assert len(frame) == len(loops)
 
 
+def test_the_batch_limit_cycle_is_simulates_check_variant_by_variant(case):
+    """``BatchMetrics.limit_cycle`` is ``sicomat simulate``'s saturation-bound limit-cycle check
+    (``limit_cycle_warning``) on each variant's run: with the position gain x1000 the drive's current limits hold
+    the unstable loop in a bounded oscillation, with x1 and x3 the loop settles."""
+    from sicomat.simulation.checks import limit_cycle_warning
+
+    _, loop, profile, _ = case
+    loops = [loop.with_gains(Kp=loop.Kp * g) for g in (1.0, 1000.0, 3.0, 2000.0)]
+    batch = simulate_batch(loops, profile, 0.3)
+    assert not batch.diverged.any()
+    one_by_one = [limit_cycle_warning(simulate(lp, profile, 0.3)) is not None for lp in loops]
+    assert list(batch.limit_cycle) == one_by_one == [False, True, False, True]
+    assert list(batch.to_pandas()["limit_cycle"]) == one_by_one
+    linear = simulate_batch(loops, profile, 0.3, nonlinear=False)   # no current limits simulated: no check
+    assert not linear.limit_cycle.any()
+
+
 def test_step_figures_many_row_by_row_equals_step_figures():
     # rows that settle, overshoot, never leave the band and never settle; a negative move
     t = np.linspace(0.0, 1.0, 1001)

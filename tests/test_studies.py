@@ -74,6 +74,7 @@ def test_a_grid_study_equals_its_variants_run_one_by_one(tmp_path, client):
     from sicomat.robotics.lowering import axis_mechanics
     from sicomat.studies import Study
     from sicomat.tasks.simulate import choose_profile
+    from sicomat.simulation.checks import simulation_verdict
     from sicomat.tuning import TuningTargets
 
     path = write_study(tmp_path, GRID)
@@ -115,6 +116,7 @@ def test_a_grid_study_equals_its_variants_run_one_by_one(tmp_path, client):
         assert row["simulate.overshoot_percent"] == pytest.approx(series.metrics.overshoot_percent, abs=1e-6)
         peak = loop.drive.kt * np.max(np.abs(series.signals["current.applied"]))
         assert row["simulate.max_effort"] == pytest.approx(peak, rel=1e-12)
+        assert row["simulate.stable"] == simulation_verdict(tuned_loop, series, profile).stable
         assert row["constraints_ok"] == (pm >= 40 and flexible[1] > 300)
     # the table as written, read back
     assert results.results_path.name == "results.parquet"
@@ -205,6 +207,42 @@ samples = 5
     mass = inputs["axes.X.mechanics.bodies.load.mass"]
     np.testing.assert_array_equal(mass[:5], mass[5:10])
     assert ((mass >= 250) & (mass <= 290)).all()
+
+
+def test_an_unstable_loop_held_by_the_current_limits_is_not_stable(tmp_path, client):
+    """``simulate.stable`` is ``sicomat simulate``'s verdict: with the position gain x1000 the drive's current
+    limits hold the unstable loop in a bounded oscillation whose figures look plausible (a following error of
+    millimetres, no divergence): the row says unstable, as simulation_verdict does for the same run, and a
+    constraint on it rejects the variant."""
+    from sicomat import build_servo_loop, load_model
+    from sicomat.simulation import simulate
+    from sicomat.simulation.checks import simulation_verdict
+    from sicomat.studies import Study
+    from sicomat.tasks.simulate import choose_profile
+
+    path = write_study(tmp_path, """
+base = "paper_5m4s.toml"
+analyses = ["simulate"]
+constraints = ["simulate.stable == true"]
+[simulate]
+duration = "0.3 s"
+[[parameters]]
+path = "axes.X.controller.Kp_normalized"
+values = [1.0, 1000.0]
+relative = true
+""")
+    study = Study(path)
+    table = study.run(client).to_pandas()
+    assert list(table["simulate.stable"]) == [True, False] and list(table["simulate.diverged"]) == [False, False]
+    assert list(table["constraints_ok"]) == [True, False]
+    for v in range(2):
+        machine = load_model(tmp_path / "paper_5m4s.toml", study.settings(v))     # as sicomat CMD --set reads them
+        loop = build_servo_loop(machine)
+        profile, _ = choose_profile(machine.axes["X"].trajectory, None, None, None, None)
+        series = simulate(loop, profile, 0.3)
+        assert table["simulate.stable"][v] == simulation_verdict(loop, series, profile).stable
+        assert table["simulate.max_following_error"][v] == pytest.approx(series.metrics.max_following_error,
+                                                                          abs=1e-12)
 
 
 def test_failed_variants_are_rows_with_their_message(tmp_path, client):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 import numpy as np
@@ -227,7 +227,10 @@ class BatchMetrics:
     effort the drive is told to apply, ``kt · |current.applied|`` (N for a force actuator, N·m for a
     torque one: after the computation delay, the current limits and the quantizer; the drive's current
     loop follows it), the figure a motor's peak effort bounds. ``diverged`` flags the variants whose
-    simulation blew up (their figures are NaN).
+    simulation blew up (their figures are NaN); ``limit_cycle`` those that end in a saturation-bound limit
+    cycle (:func:`~sicomat.simulation.checks.saturation_cycle`, the check ``sicomat simulate`` makes: an
+    unstable loop held by the current limits, whose figures are not a stable loop's; False where the current
+    limits are not simulated).
     """
 
     max_following_error: np.ndarray
@@ -238,6 +241,7 @@ class BatchMetrics:
     max_effort: np.ndarray
     diverged: np.ndarray
     wall_time_s: float
+    limit_cycle: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     def to_pandas(self):
         """One row per variant."""
@@ -247,7 +251,7 @@ class BatchMetrics:
                              "rms_following_error": self.rms_following_error,
                              "final_error": self.final_error, "overshoot_percent": self.overshoot_percent,
                              "settling_time": self.settling_time, "max_effort": self.max_effort,
-                             "diverged": self.diverged})
+                             "diverged": self.diverged, "limit_cycle": self.limit_cycle})
 
 
 def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", duration: float, *,
@@ -264,11 +268,11 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dur
     With ``progress`` (:mod:`sicomat.progress`) the variants run in about twenty compiled calls
     instead of one, each reported when it returns (the figures are the same: variants are independent).
     """
+    from .checks import saturation_cycle, tail_start
     from .kernel import run_batch
 
-    # the kernel's records (2 slots) and the following error and position computed from them: 4 values
-    # per variant and step
-    programs, n_steps = loop_programs(loops, profile, duration, nonlinear=nonlinear, recorded=4 * len(loops))
+    programs, n_steps = loop_programs(loops, profile, duration, nonlinear=nonlinear,
+                                      recorded=BATCH_VALUES_PER_STEP * len(loops))
     sensors = [f"sensor.{loop.controller.position_sensor}" for loop in loops]
     if len(set(sensors)) != 1:
         raise ModelError("the variants of a batch must share their position sensor", path="controller.position_sensor")
@@ -276,14 +280,18 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dur
     applied = first_program.aliases.get("current.applied", None)
     if applied is None:
         applied = first_program.slot_names.index("current.applied")
+    # the current limits, for the limit-cycle check (absent when they are not simulated: a continuous velocity
+    # loop, nonlinear=False)
+    limits = [n for n in ("current.lower", "current.upper") if n in first_program.slot_names]
+    record: list[int | str] = [sensors[0], int(applied), *limits]
     chunk = len(programs) if progress is None else max(1, -(-len(programs) // 20))
     task = f"simulating {len(programs)} variants: {n_steps} steps each"
     notify(progress, task, 0, len(programs))
     start = _time.perf_counter()
     parts = []
     for first in range(0, len(programs), chunk):
-        parts.append(run_batch(programs[first: first + chunk], n_steps, record=[sensors[0], int(applied)],
-                               on_divergence="flag", threads=threads))
+        parts.append(run_batch(programs[first: first + chunk], n_steps, record=record, on_divergence="flag",
+                               threads=threads))
         notify(progress, task, min(first + chunk, len(programs)), len(programs))
     wall = _time.perf_counter() - start
     result = parts[0]
@@ -297,5 +305,18 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dur
     figures = following_figures_many(result.time, fine, records[:, :, 0], gains, records[:, :, 1], kt,
                                      profile.distance, start=profile.breaks[0])
     max_error, rms_error, final_error, overshoot, settling, effort = (np.where(bad, np.nan, f) for f in figures)
+    cycle = np.zeros(len(loops), dtype=bool)
+    if len(limits) == 2:
+        start = tail_start(records.shape[1])
+        still = bool(np.ptp(fine[start:]) == 0)
+        for v in np.flatnonzero(~bad):
+            tail = records[v, start:]
+            cycle[v] = saturation_cycle(tail[:, 1], tail[:, 2], tail[:, 3], still) is not None
     return BatchMetrics(max_error, rms_error, final_error, overshoot_percent=overshoot, settling_time=settling,
-                        max_effort=effort, diverged=bad, wall_time_s=wall)
+                        max_effort=effort, diverged=bad, wall_time_s=wall, limit_cycle=cycle)
+
+
+BATCH_VALUES_PER_STEP = 6
+"""Values per variant and step that :func:`simulate_batch` keeps (its memory estimate): the kernel's records (the
+position sensor, the applied current and its two limits) and the following error and position computed from
+them."""

@@ -38,7 +38,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from .kernel import SimulationDiverged
 
 __all__ = ["TAIL_FRACTION", "SATURATED_FRACTION", "LIMIT_TOLERANCE", "FINAL_ERROR_BAND", "FINAL_ERROR_COUNTS",
-           "simulation_verdict", "coupled_simulation_verdict", "diverged_verdict", "limit_cycle_warning", "final_error_warning"]
+           "simulation_verdict", "coupled_simulation_verdict", "diverged_verdict", "limit_cycle_warning",
+           "saturation_cycle", "tail_start", "final_error_warning"]
 
 TAIL_FRACTION = 0.25
 """The tail of a run examined for a limit cycle: its last quarter."""
@@ -107,9 +108,28 @@ def limit_cycle_warning(series: "TimeSeries") -> str | None:
         current, lower, upper = (series[name] for name in ("current.applied", "current.lower", "current.upper"))
     except KeyError:          # a continuous velocity loop: its current limits are not simulated
         return None
-    n = current.size
-    tail = slice(n - max(int(TAIL_FRACTION * n), 1), None)
-    current, lower, upper = current[tail], lower[tail], upper[tail]
+    start = tail_start(current.size)
+    still = "setpoint.fine" in series.signals and np.ptp(series["setpoint.fine"][start:]) == 0
+    cycle = saturation_cycle(current[start:], lower[start:], upper[start:], still)
+    if cycle is None:
+        return None
+    saturated, switches = cycle
+    return (f"saturation-bound limit cycle: from t = {float(series.time[start]):.3g} s the current reference is at "
+            f"its limit in {100 * saturated:.0f} % of the samples, going from one limit to the other {switches} "
+            f"time{'s' if switches > 1 else ''}")
+
+
+def tail_start(n: int) -> int:
+    """The first sample of the tail of ``n`` samples that the limit-cycle check examines (:data:`TAIL_FRACTION`)."""
+    return n - max(int(TAIL_FRACTION * n), 1)
+
+
+def saturation_cycle(current: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                     still: bool) -> tuple[float, int] | None:
+    """``(fraction of samples at a limit, switches from one limit to the other)`` when the tail ``current`` with
+    its limits ``lower``, ``upper`` is a saturation-bound limit cycle (module docstring; ``still``: the setpoint
+    stands still over the tail), else None. The one definition of :func:`limit_cycle_warning` (``simulate``)
+    and of :func:`~sicomat.simulation.simulate_batch`'s ``limit_cycle`` (studies)."""
     span = upper - lower
     with np.errstate(invalid="ignore"):
         tol = LIMIT_TOLERANCE * np.where(np.isfinite(span), span, np.nan)
@@ -117,12 +137,9 @@ def limit_cycle_warning(series: "TimeSeries") -> str | None:
     saturated = np.count_nonzero(side) / side.size
     at = side[side != 0]
     switches = int(np.count_nonzero(at[1:] != at[:-1])) if at.size else 0
-    still = "setpoint.fine" in series.signals and np.ptp(series["setpoint.fine"][tail]) == 0
     if saturated < SATURATED_FRACTION or switches < (1 if still else 2):
         return None
-    where = float(series.time[tail][0])
-    return (f"saturation-bound limit cycle: from t = {where:.3g} s the current reference is at its limit in "
-            f"{100 * saturated:.0f} % of the samples, going from one limit to the other {switches} time{'s' if switches > 1 else ''}")
+    return float(saturated), switches
 
 
 def final_error_warning(loop: "ServoLoop", series: "TimeSeries", profile) -> str | None:

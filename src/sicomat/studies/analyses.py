@@ -47,7 +47,7 @@ METRICS: dict[str, dict[str, str]] = {
                 "margins.stable": "b"},
     "simulate": {"simulate.max_following_error": "f", "simulate.rms_following_error": "f",
                  "simulate.final_error": "f", "simulate.settling_time": "f", "simulate.overshoot_percent": "f",
-                 "simulate.max_effort": "f", "simulate.diverged": "b"},
+                 "simulate.max_effort": "f", "simulate.diverged": "b", "simulate.stable": "b"},
     "circle": {"circle.circular_deviation": "f", "circle.max_contour_error": "f",
                "circle.rms_contour_error": "f", "circle.radial_deviation_min": "f",
                "circle.radial_deviation_max": "f", "circle.servo_mismatch": "f", "circle.stable": "b"},
@@ -282,11 +282,17 @@ def _simulate(variants: list[_Variant], opts: StudyOptions) -> None:
 
 
 def _simulate_group(members: list[tuple[_Variant, Any, float]]) -> None:
+    from ..servo.stability import loop_verdict
     from ..simulation import simulate_batch
 
     _, profile, duration = members[0]
     batch = simulate_batch([v.loop for v, _, _ in members], profile, duration, nonlinear=True)
     for k, (v, _, _) in enumerate(members):
+        # sicomat simulate's "stable": the linear loop's poles (margins.stable when margins ran on this same
+        # loop), no saturation-bound limit cycle, no divergence
+        linear = v.row.get("margins.stable")
+        linear = loop_verdict(v.loop).stable if linear is None else linear
+        v.row["simulate.stable"] = bool(linear) and not batch.limit_cycle[k] and not batch.diverged[k]
         v.row.update({"simulate.max_following_error": float(batch.max_following_error[k]),
                       "simulate.rms_following_error": float(batch.rms_following_error[k]),
                       "simulate.final_error": float(batch.final_error[k]),

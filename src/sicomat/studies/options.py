@@ -105,11 +105,11 @@ def check_analyses(spec: "StudySpec", machine: "Machine", axis: str, source: str
             raise ModelError(f"{', '.join(needs_loop)} need the axis's servo loop, which the base model cannot "
                              f"build: {exc}", source=source, path="analyses") from None
         if "simulate" in spec.analyses and options is not None and options.duration is not None:
-            from ..simulation import require_simulation_memory, run_steps
+            from ..simulation import BATCH_VALUES_PER_STEP, require_simulation_memory, run_steps
 
-            try:   # simulate_batch keeps 4 values a step and variant
+            try:
                 n_steps = run_steps([loop], options.duration)
-                require_simulation_memory(n_steps, 4, -(-n_steps // loop.position_ratio))
+                require_simulation_memory(n_steps, BATCH_VALUES_PER_STEP, -(-n_steps // loop.position_ratio))
             except SicomatError as exc:   # a ModelError's own path and value are run_steps': the study's key instead
                 message = exc.message if isinstance(exc, ModelError) else str(exc)
                 raise ModelError(message, source=source, path="simulate.duration", value=spec.simulate.duration) \
