@@ -261,8 +261,8 @@ def simulate_batch(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dur
     compiled call and return each variant's figures (:class:`BatchMetrics`).
 
     The variants must share the loop's structure (same blocks, sample periods, delays, filters
-    and friction links); only numbers may differ. Only the position sensor and the applied current
-    are recorded. The variants are shared over ``threads`` threads (default: numba's thread count in the
+    and friction links); only numbers may differ. Only the position sensor, the applied current and
+    its two limits are recorded. The variants are shared over ``threads`` threads (default: numba's thread count in the
     calling thread, see :func:`~sicomat.simulation.kernel.run_batch`); each one's figures are the same
     whatever the thread count and the other variants.
     With ``progress`` (:mod:`sicomat.progress`) the variants run in about twenty compiled calls
