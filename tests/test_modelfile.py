@@ -208,6 +208,30 @@ def test_not_utf8(tmp_path):
     assert str(path) in str(info.value)
 
 
+def test_a_byte_order_mark_is_dropped(tmp_path):
+    """A model, study or catalogue file that a Windows editor saved with a UTF-8 byte-order mark reads as the
+    same file without it (tomllib refuses the mark: "Invalid statement (at line 1, column 1)")."""
+    from sicomat.catalogue.store import load_catalogue
+    from sicomat.studies.spec import load_study
+
+    bom = b"\xef\xbb\xbf"
+    source = EXAMPLES_DIR / "paper_5m4s.toml"
+    marked = tmp_path / "paper_5m4s.toml"
+    marked.write_bytes(bom + source.read_bytes())
+    assert dump_model(load_model(marked)) == dump_model(load_model(source))
+    study = tmp_path / "study.toml"
+    study.write_bytes(bom + b'base = "paper_5m4s.toml"\nanalyses = ["modal"]\n[[parameters]]\n'
+                            b'path = "axes.X.mechanics.bodies.load.mass"\nvalues = ["200 kg"]\n')
+    spec, base = load_study(study)
+    assert spec.analyses == ["modal"] and base == tmp_path / "paper_5m4s.toml"
+    parts = tmp_path / "parts"
+    parts.mkdir()
+    (parts / "motor-with-bom.toml").write_bytes(
+        bom + b'kind = "motor"\n[parameters]\nrotor_inertia = "7 kg*cm^2"\ntorque_constant = "1.6 N*m/A"\n'
+              b'torque_constant_basis = "rms"\n[provenance]\nsource = "typical"\nrange = "a test entry"\n')
+    assert load_catalogue([parts], environment=False).get("motor-with-bom").kind == "motor"
+
+
 def test_missing_file(tmp_path):
     path = tmp_path / "does_not_exist.toml"
     with pytest.raises(ModelError) as info:

@@ -231,7 +231,7 @@ def read_entry(item: Traversable, source: str) -> Entry:
     if len(data) > MAX_FILE_BYTES:
         raise ModelError(f"a catalogue file is larger than {MAX_FILE_BYTES} bytes", source=source)
     try:
-        table = tomllib.loads(data.decode("utf-8"))
+        table = tomllib.loads(data.decode("utf-8-sig"))    # a leading byte-order mark dropped, as for model files
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError, ValueError) as exc:
         raise ModelError(f"not a valid TOML file: {exc}", source=source) from None
     unknown = sorted(set(table) - {"kind", "description", "parameters", "provenance"})

@@ -166,12 +166,13 @@ or a mistaken multi-gigabyte file from being read into memory whole."""
 
 def read_text_bounded(path: str | os.PathLike, limit: int, what: str) -> str:
     """The UTF-8 text of ``path``, refused (:class:`ModelError`) beyond ``limit`` bytes, which are
-    never all read: at most ``limit + 1`` bytes are (a device such as ``/dev/zero`` never ends)."""
+    never all read: at most ``limit + 1`` bytes are (a device such as ``/dev/zero`` never ends). A leading
+    byte-order mark (which some Windows editors write) is dropped: TOML's parser refuses it at line 1."""
     with open(path, "rb") as stream:
         data = stream.read(limit + 1)
     if len(data) > limit:
         raise ModelError(f"{what} larger than {limit // 1024 ** 2} MiB; expected a text file", source=str(path))
-    return data.decode("utf-8")
+    return data.decode("utf-8-sig")
 
 
 MAX_DEPTH = 32
