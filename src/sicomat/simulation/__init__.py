@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 import numpy as np
@@ -54,11 +54,8 @@ def loop_programs(loops: Sequence["ServoLoop"], profile: "SetpointProfile", dura
             raise ModelError(f"variant {v}: the loop periods differ from variant 0's "
                              f"({loop.base_period:g} s / {loop.position_ratio} against {h:g} s / {Np})",
                              path=f"axes.{loop.axis}.controller")
-    n_steps = run_steps(loops, duration)
-    n_pos = -(-n_steps // Np)
     per_step = recorded if recorded is not None else _values_per_step(first, profile, nonlinear)
-    delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in loops)
-    require_simulation_memory(n_steps, per_step, n_pos, delayed)
+    n_steps, n_pos = run_size(loops, duration, per_step)
     t_pos = np.arange(n_pos) * Np * h
     table = SetpointTable(*profile.evaluate(t_pos))
     return [servo_program(loop, table, nonlinear=nonlinear) for loop in loops], n_steps
@@ -117,7 +114,18 @@ def _values_per_step(loop: "ServoLoop", profile: "SetpointProfile", nonlinear: b
     return len(program.record) + program.continuous.A.shape[0] + 2 * program.continuous.G.shape[0]
 
 
-def require_simulation_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -> None:
+def run_size(loops: Sequence["ServoLoop"], duration: float, per_step: int) -> tuple[int, int]:
+    """The base steps and position-loop samples of a run of ``loops`` (sharing their periods) for ``duration``
+    seconds keeping ``per_step`` values a step and loop, checked (:func:`run_steps`) and refused when its
+    arrays would not fit in memory (:class:`~sicomat.errors.ResourceError`, before anything is allocated)."""
+    n_steps = run_steps(loops, duration)
+    n_pos = -(-n_steps // loops[0].position_ratio)
+    delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in loops)
+    _require_memory(n_steps, per_step, n_pos, delayed)
+    return n_steps, n_pos
+
+
+def _require_memory(n_steps: int, per_step: int, n_pos: int, delayed: int = 0) -> None:
     """Refuse a run whose arrays cannot fit: the kernel's records (``per_step`` values of 8 bytes per
     step), as much again for the named and derived signals and the metrics computed from them, the
     setpoint table (time, position, velocity, acceleration and the kernel's 3 columns) and the ring
@@ -241,7 +249,7 @@ class BatchMetrics:
     max_effort: np.ndarray
     diverged: np.ndarray
     wall_time_s: float
-    limit_cycle: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    limit_cycle: np.ndarray
 
     def to_pandas(self):
         """One row per variant."""

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping
 import numpy as np
 
 from ..errors import ModelError
-from . import axis_series, named_signals, require_simulation_memory, run_steps, timed_run
+from . import _require_memory, axis_series, named_signals, run_steps, timed_run
 from .timeseries import TimeSeries
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -100,7 +100,7 @@ def coupled_run_program(coupled: "CoupledLoop", profiles: Mapping[str, "Setpoint
     per_step = len(probe.record) + probe.continuous.A.shape[0] + 2 * probe.continuous.G.shape[0]
     n_pos = sum(-(-n_steps // loop.position_ratio) for loop in coupled.loops)
     delayed = sum(loop.controller.velocity_delay + loop.controller.position_delay for loop in coupled.loops)
-    require_simulation_memory(n_steps, per_step, n_pos, delayed)
+    _require_memory(n_steps, per_step, n_pos, delayed)
     tables = {}
     for loop in coupled.loops:
         Np = loop.position_ratio

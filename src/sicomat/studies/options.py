@@ -91,8 +91,7 @@ def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
                         spec.size.inertia_ratio_limit)
 
 
-def check_analyses(spec: "StudySpec", machine: "Machine", axis: str, source: str,
-                   options: "StudyOptions | None" = None) -> None:
+def check_analyses(spec: "StudySpec", machine: "Machine", axis: str, source: str, options: StudyOptions) -> None:
     """Refuse, before any work, analyses the base model cannot run (no controller, no move, one axis), and a
     simulated duration whose records would not fit in memory for one variant (as ``sicomat simulate``)."""
     needs_loop = [a for a in spec.analyses if a in ("tune", "margins", "simulate", "size")]
@@ -104,12 +103,11 @@ def check_analyses(spec: "StudySpec", machine: "Machine", axis: str, source: str
         except SicomatError as exc:
             raise ModelError(f"{', '.join(needs_loop)} need the axis's servo loop, which the base model cannot "
                              f"build: {exc}", source=source, path="analyses") from None
-        if "simulate" in spec.analyses and options is not None and options.duration is not None:
-            from ..simulation import BATCH_VALUES_PER_STEP, require_simulation_memory, run_steps
+        if "simulate" in spec.analyses and options.duration is not None:
+            from ..simulation import BATCH_VALUES_PER_STEP, run_size
 
             try:
-                n_steps = run_steps([loop], options.duration)
-                require_simulation_memory(n_steps, BATCH_VALUES_PER_STEP, -(-n_steps // loop.position_ratio))
+                run_size([loop], options.duration, BATCH_VALUES_PER_STEP)
             except SicomatError as exc:   # a ModelError's own path and value are run_steps': the study's key instead
                 message = exc.message if isinstance(exc, ModelError) else str(exc)
                 raise ModelError(message, source=source, path="simulate.duration", value=spec.simulate.duration) \
