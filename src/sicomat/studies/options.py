@@ -46,6 +46,11 @@ def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
         except ValueError as exc:
             raise ModelError(str(exc), source=source, path=f"{table}.{key}", value=value) from None
 
+    def positive(table: str, key: str, value: float | None, given: Any) -> None:
+        """As the commands' options: a limit, crossover, duration, radius or feed is > 0 when given."""
+        if value is not None and not value > 0:
+            raise ModelError(f"expected a {key} > 0", source=source, path=f"{table}.{key}", value=given)
+
     angular = Unit("rad/s", "an angular frequency (rad/s, or Hz)")
     degrees = Unit("", "an angle in degrees (a plain number)")
     decibels = Unit("", "a gain in dB (a plain number)")
@@ -58,9 +63,8 @@ def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
     if tune["position_phase_margin"] is not None and tune["position_crossover"] is not None:
         raise ModelError("give either position_phase_margin or position_crossover", source=source,
                          path="tune.position_crossover")
-    for key in ("velocity_crossover", "position_crossover", "min_gain_margin"):   # as sicomat tune's options
-        if tune[key] is not None and not tune[key] > 0:   # type: ignore[operator]
-            raise ModelError(f"expected a {key} > 0", source=source, path=f"tune.{key}", value=getattr(t, key))
+    for key in ("velocity_crossover", "position_crossover", "min_gain_margin"):
+        positive("tune", key, tune[key], getattr(t, key))
     for key in ("velocity_phase_margin", "position_phase_margin"):
         if tune[key] is not None and not 0 < tune[key] < 180:   # type: ignore[operator]
             raise ModelError("expected a phase margin between 0 and 180 degrees", source=source,
@@ -68,21 +72,17 @@ def analysis_options(spec: "StudySpec", axis: str, source: str) -> StudyOptions:
     s = spec.simulate
     move = si("simulate", "move", s.move, UNITS["length"])
     duration = si("simulate", "duration", s.duration, UNITS["time"])
-    if duration is not None and duration <= 0:
-        raise ModelError("expected a duration > 0", source=source, path="simulate.duration", value=s.duration)
+    positive("simulate", "duration", duration, s.duration)
     radius = si("circle", "radius", spec.circle.radius, UNITS["length"])
     feed = si("circle", "feed", spec.circle.feed, UNITS["velocity"])
-    for key, value in (("radius", radius), ("feed", feed)):
-        if not (value is not None and value > 0):
-            raise ModelError(f"expected a {key} > 0", source=source, path=f"circle.{key}", value=value)
+    positive("circle", "radius", radius, radius)
+    positive("circle", "feed", feed, feed)
     size_move = si("size", "move", spec.size.move, UNITS["length"])
     max_velocity = si("simulate", "max_velocity", s.max_velocity, UNITS["velocity"])
     max_acceleration = si("simulate", "max_acceleration", s.max_acceleration, UNITS["acceleration"])
-    # as sicomat simulate's options: limits > 0 (a zero limit would fall back to the trajectory's), a move not 0
-    for key, value in (("max_velocity", max_velocity), ("max_acceleration", max_acceleration)):
-        if value is not None and not value > 0:
-            raise ModelError(f"expected a {key} > 0", source=source, path=f"simulate.{key}",
-                             value=getattr(s, key))
+    # a zero limit would fall back to the trajectory's
+    positive("simulate", "max_velocity", max_velocity, s.max_velocity)
+    positive("simulate", "max_acceleration", max_acceleration, s.max_acceleration)
     for table, value, given in (("simulate", move, s.move), ("size", size_move, spec.size.move)):
         if value == 0:
             raise ModelError("expected a move of non-zero length", source=source, path=f"{table}.move", value=given)
