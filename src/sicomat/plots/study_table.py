@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axis import Axis
     from matplotlib.figure import Figure
 
-__all__ = ["UNIT_SUFFIXES", "table_units", "unit_of", "column_label", "format_value", "engineering_ticks", "refuse",
+__all__ = ["UNIT_SUFFIXES", "table_units", "unit_of", "suffix_unit", "column_label", "format_value", "engineering_ticks", "refuse",
            "check_columns", "check_column", "numeric_columns", "as_numbers", "numbers", "succeeded", "counts",
            "Colour", "colour_groups", "colormap"]
 
@@ -63,9 +63,11 @@ def table_units(draw: "Callable[..., Figure]") -> "Callable[..., Figure]":
 def unit_of(column: str) -> str | None:
     """The unit the table being drawn gives the column (:func:`table_units`), else the one its name ends
     with (``UNIT_SUFFIXES``), else None."""
-    given = _TABLE_UNITS.get().get(column)
-    if given:
-        return given
+    return _TABLE_UNITS.get().get(column) or suffix_unit(column)
+
+
+def suffix_unit(column: str) -> str | None:
+    """The unit the column's name ends with (``UNIT_SUFFIXES``, the longest matching suffix), else None."""
     name = column.lower()
     for suffix in sorted(UNIT_SUFFIXES, key=len, reverse=True):
         if name.endswith(suffix):

@@ -67,13 +67,9 @@ class StudyPlan:
     def column_unit(self, name: str) -> str | None:
         """The unit of a column of the table (an SI unit for a name without a unit suffix, else the suffix's:
         Hz, °, dB, %), None when it has none (a ratio, a gain in the model's units, true/false)."""
-        from ..plots.study_table import UNIT_SUFFIXES
+        from ..plots.study_table import suffix_unit
 
-        units = self.units()
-        if name in units:
-            return units[name]
-        return next((UNIT_SUFFIXES[s] for s in sorted(UNIT_SUFFIXES, key=len, reverse=True)
-                     if name.lower().endswith(s)), None)
+        return self.units().get(name) or suffix_unit(name)
 
     def units(self) -> dict[str, str]:
         """The SI unit of each column whose name carries none (inputs and metrics), for the figures' labels."""
