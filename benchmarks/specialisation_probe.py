@@ -30,13 +30,12 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks import _common  # noqa: E402,F401  (first: one BLAS thread)
+from benchmarks._common import interleaved  # noqa: E402  (first: one BLAS thread)
 
 import importlib.util  # noqa: E402
 import re  # noqa: E402
 import statistics  # noqa: E402
 import tempfile  # noqa: E402
-import time  # noqa: E402
 from types import ModuleType  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -46,7 +45,7 @@ from sicomat.simulation import kernel, loop_program  # noqa: E402
 from sicomat.simulation.lowering import lower, sparse_outputs  # noqa: E402
 
 ROUNDS = 9
-REPEAT = 7          # calls per timing within a round (their best is the round's time)
+REPEAT = 7          # interleaved calls of each timing within a round (their best is the round's time)
 
 
 def _replace(src: str, old: str, new: str, count: int = 1) -> str:
@@ -100,15 +99,6 @@ def _load(src: str, folder: Path) -> ModuleType:
     return module
 
 
-def _best(fn, repeat: int = REPEAT) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
-
-
 def main() -> None:
     _, loop, profile = load_case()
     program, n_steps = loop_program(loop, profile, DURATION)
@@ -121,13 +111,16 @@ def main() -> None:
             raise SystemExit("specialisation_probe: the specialised kernel's records differ from the kernel's")
         assert np.array_equal(kernel.bare_loop(Phi, Gamma, K, 100), spec.bare_loop(Phi, Gamma, K, 100))
         rows: dict[str, list[float]] = {k: [] for k in ("kernel", "kernel_spec", "bare", "bare_spec")}
+        calls = {"bare": lambda: kernel.bare_loop(Phi, Gamma, K, n_steps),
+                 "bare_spec": lambda: spec.bare_loop(Phi, Gamma, K, n_steps),
+                 "kernel": lambda: kernel.run(program, n_steps), "kernel_setup": lambda: kernel.run(program, 1),
+                 "kernel_spec": lambda: spec.run(program, n_steps), "kernel_spec_setup": lambda: spec.run(program, 1)}
         for _ in range(ROUNDS):
-            rows["bare"].append(_best(lambda: kernel.bare_loop(Phi, Gamma, K, n_steps)))
-            rows["bare_spec"].append(_best(lambda: spec.bare_loop(Phi, Gamma, K, n_steps)))
-            rows["kernel"].append(_best(lambda: kernel.run(program, n_steps)) - _best(lambda: kernel.run(program, 1)))
-            rows["kernel_spec"].append(_best(lambda: spec.run(program, n_steps)) - _best(lambda: spec.run(program, 1)))
+            best = {k: t.best for k, t in interleaved(calls, REPEAT).items()}
+            for key in rows:     # a kernel's time loop: its run less its one-step run (the setup)
+                rows[key].append(best[key] - best.get(key + "_setup", 0.0))
     print(f"5M4S, 1 s ({n_steps} steps), every effect on: time loop of kernel.run; bare loop of "
-          f"{Phi.shape[0]} states. {ROUNDS} interleaved rounds, each the best of {REPEAT} calls.")
+          f"{Phi.shape[0]} states. {ROUNDS} rounds, each the best of {REPEAT} interleaved calls.")
     for key, label in (("kernel", "kernel, generic"), ("kernel_spec", "kernel, structure as constants"),
                        ("bare", "bare loop, generic"), ("bare_spec", "bare loop, sizes as constants")):
         print(f"  {label:32s} best {1e3 * min(rows[key]):.3f} ms  median {1e3 * statistics.median(rows[key]):.3f} ms")
